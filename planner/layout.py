@@ -23,6 +23,10 @@ DEFAULT_MOUNT_HEIGHT_M = 2.5
 """Ceiling height when neither drawing nor flags give one [m] (the paper's rig)."""
 
 
+UNIT_TO_M = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254, "ft": 0.3048}
+"""Length units accepted in drawings, layout files and ``--units`` [m per unit]."""
+
+
 @dataclass(frozen=True)
 class Luminaire:
     """One ceiling luminaire.

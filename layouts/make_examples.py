@@ -1,0 +1,41 @@
+"""Write the bundled YAML/CSV example layouts (run from the repository root).
+
+The grids are the paper's three cases as rectangular lattices of 0.5 m pitch
+under a 2.5 m ceiling (the paper's height), dense enough that the paper's
+camera sees three LEDs from a hand-held phone.
+"""
+
+from pathlib import Path
+
+import yaml
+
+HERE = Path(__file__).parent
+PITCH_M = 0.5
+
+
+def grid(rows: int, cols: int) -> dict:
+    lums = [{"name": f"R{r + 1:02d}C{c + 1:02d}", "x": round((c + 0.5) * PITCH_M, 3), "y": round((r + 0.5) * PITCH_M, 3)}
+            for r in range(rows) for c in range(cols)]
+    return {"unit": "m", "height": 2.5, "radius": 0.1,
+            "outline": [[0, 0], [cols * PITCH_M, 0], [cols * PITCH_M, rows * PITCH_M], [0, rows * PITCH_M]],
+            "luminaires": lums}
+
+
+def dump(name: str, doc: dict, comment: str) -> None:
+    text = f"# {comment}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
+    (HERE / name).write_text(text)
+
+
+if __name__ == "__main__":
+    dump("grid-32.yaml", grid(4, 8), "The paper's 32-LED case: 4 x 8 grid, 0.5 m pitch.")
+    dump("grid-256.yaml", grid(16, 16), "The paper's 256-LED case: 16 x 16 grid, 0.5 m pitch.")
+    dump("grid-512.yaml", grid(16, 32), "The paper's 512-LED case: 16 x 32 grid, 0.5 m pitch.")
+    dump("paper-rig.yaml", {"unit": "cm", "radius": 10, "luminaires": [
+        {"name": "N", "x": 0, "y": 30, "z": 250}, {"name": "S", "x": 0, "y": -30, "z": 250},
+        {"name": "E", "x": 50, "y": 0, "z": 250}, {"name": "W", "x": -50, "y": 0, "z": 250}]},
+        "The paper's test rig (Table 2): four LEDs 2.5 m up; radius 10 cm assumed (not in the paper).")
+    dump("outline-room.yaml", {"unit": "m", "height": 2.5, "outline": [[0, 0], [16, 0], [16, 8], [0, 8]]},
+         "A 16 m x 8 m room with no luminaires: use with --leds N.")
+    rows = ["name,x,y,z,radius"] + [f"A{c + 1},{c * 1.2:.1f},{r * 1.2:.1f},2.8,0.1"
+                                     for r in range(3) for c in range(4)]
+    (HERE / "corridor.csv").write_text("# unit: m\n# A 3 x 4 luminaire corridor, 1.2 m pitch.\n" + "\n".join(rows) + "\n")

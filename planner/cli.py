@@ -1,0 +1,166 @@
+"""Command line: ``vlp-plan LAYOUT [--leds N] [-o OUTDIR] ...``.
+
+``main(argv)`` raises :class:`~planner.errors.PlannerError` so tests can call
+it in process; ``console_main`` turns errors into one line and an exit code
+(2 for usage, 1 for bad input), with the traceback only under ``--verbose``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+import traceback
+from pathlib import Path
+
+from . import __version__
+from .camera import Camera
+from .errors import PlannerError, UsageError
+from .layout import UNIT_TO_M
+from .pipeline import PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises UsageError instead of exiting, so main() stays testable."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not value > 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(
+        prog="vlp-plan",
+        description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
+        "(DXF) or a luminaire list (YAML/CSV), give every luminaire an ID under the paper's region code, "
+        "and write plan.yaml, an annotated DXF and a map into OUTDIR.",
+        epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error. Docs: docs/cli.md.",
+    )
+    p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .yaml/.yml or .csv")
+    p.add_argument("--leds", type=_positive_int, metavar="N",
+                   help="expected luminaire count (a mismatch is an error); with only a room outline, "
+                   "lay out N luminaires on a lattice inside it")
+    p.add_argument("-o", "--outdir", metavar="OUTDIR", help="output directory (default: <layout>-vlp next to LAYOUT)")
+    g = p.add_argument_group("reading")
+    g.add_argument("--units", choices=sorted(UNIT_TO_M), help="coordinate unit of LAYOUT, overriding the file")
+    g.add_argument("--preset", choices=["auto", "dialux", "revit", "generic"], default="auto",
+                   help="DXF luminaire patterns (default: auto = all presets)")
+    g.add_argument("--layer", action="append", default=[], metavar="PATTERN",
+                   help="DXF layer pattern of luminaires (fnmatch, repeatable; replaces the preset's)")
+    g.add_argument("--block", action="append", default=[], metavar="PATTERN",
+                   help="DXF block-name pattern of luminaires (repeatable; replaces the preset's)")
+    g.add_argument("--height", type=_positive_float, metavar="M",
+                   help="mounting height [m] where the layout gives none (default 2.5)")
+    g.add_argument("--radius", type=_positive_float, metavar="M",
+                   help="LED radius [m] where the layout gives none (default 0.1)")
+    g = p.add_argument_group("planning")
+    g.add_argument("--scheme", choices=["paper"], default="paper", help="ID scheme (default: paper region code)")
+    g.add_argument("--time-limit", type=float, default=10.0, metavar="S",
+                   help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10)")
+    g.add_argument("--seed", type=int, default=0, help="random seed of the search (default 0)")
+    g = p.add_argument_group("output")
+    g.add_argument("--no-map", action="store_true", help="do not draw map.png")
+    g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
+    g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"vlp-plan {__version__}")
+    return p
+
+
+def _progress(message: str) -> None:
+    if sys.stderr.isatty():
+        print(f"  .. {message}", file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
+    args = build_parser().parse_args(argv)
+    t0 = time.perf_counter()
+    read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius)
+    _progress(f"reading {args.layout}")
+    layout = read_layout(args.layout, args.leds, read_opts)
+    _progress(f"planning {len(layout.luminaires)} luminaires")
+    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, Camera()))
+    outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
+    _progress(f"writing {outdir}")
+    written = write_outputs(plan, outdir, with_map=not args.no_map)
+    a, g = plan.assignment, plan.graph
+    summary = {
+        "layout": str(args.layout),
+        "luminaires": len(layout.luminaires),
+        "unit": layout.unit,
+        "unit_reason": layout.unit_reason,
+        "notes": list(layout.notes),
+        "neighbour_pairs": g.graph.number_of_edges(),
+        "bipartite": g.bipartite,
+        "odd_cycle": [layout.luminaires[v].name for v in g.odd_cycle] if g.odd_cycle else None,
+        "scheme": a.scheme,
+        "method": a.method,
+        "bits": a.bits,
+        "naive_bits": a.naive_bits,
+        "lower_bound_bits": a.lower_bound_bits,
+        "efficiency": round(a.efficiency, 4),
+        "regions": int(a.regions.max()) + 1,
+        "max_id": a.max_id,
+        "outdir": str(outdir),
+        "files": [str(p) for p in written],
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        _print_summary(summary)
+    return summary
+
+
+def _print_summary(s: dict) -> None:
+    print(f"vlp-plan {__version__}: {s['layout']}")
+    print(f"  layout   {s['luminaires']} luminaires; unit {s['unit']} ({s['unit_reason']})")
+    for note in s["notes"]:
+        print(f"           note: {note}")
+    shape = "bipartite" if s["bipartite"] else f"NOT bipartite (odd cycle {' - '.join(s['odd_cycle'])})"
+    print(f"  graph    {s['neighbour_pairs']} neighbour pairs, {shape}")
+    print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bits "
+          f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
+          f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, {s['regions']} regions")
+    print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
+
+
+def console_main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``vlp-plan`` script: one line per error, exit code."""
+    verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
+    try:
+        main(argv)
+    except PlannerError as exc:
+        if verbose:
+            traceback.print_exc()
+        print(f"vlp-plan: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("vlp-plan: interrupted; no output was written", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug: still one line, unless asked for more
+        if verbose:
+            traceback.print_exc()
+        print(f"vlp-plan: internal error: {type(exc).__name__}: {exc} (rerun with --verbose and report it)",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(console_main())

@@ -1,0 +1,144 @@
+"""Run the stages in order: read a layout, plan it, write the outputs atomically.
+
+The thin chain behind ``vlp-plan``: each stage lives in its own module and can
+be used alone; this module only sequences them and owns the output directory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .assignment import assign_paper
+from .camera import Camera
+from .errors import InputError, UsageError
+from .graph import build_graph
+from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
+from .plan import Plan, dump_plan, plan_document
+
+LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How to read a layout (the command line's reading flags)."""
+
+    units: str | None = None
+    preset: str = "auto"
+    layers: tuple[str, ...] = ()
+    blocks: tuple[str, ...] = ()
+    mount_height_m: float | None = None
+    radius_m: float | None = None
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """How to plan (scheme, search budget, seed, camera)."""
+
+    scheme: str = "paper"
+    time_budget: float = 10.0
+    seed: int = 0
+    camera: Camera = field(default_factory=Camera)
+
+
+def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
+    """Read a DXF, YAML or CSV layout; with ``leds`` and only an outline, fill it."""
+    path = Path(path)
+    if path.suffix.lower() not in LAYOUT_SUFFIXES:
+        raise UsageError(f"{path}: unknown layout type {path.suffix!r}; give a .dxf, .yaml, .yml or .csv file")
+    if not path.is_file():
+        raise UsageError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".dxf":
+        from .dxf_layout import read_dxf
+
+        layout = read_dxf(
+            path, units=options.units, preset=options.preset, layers=list(options.layers) or None,
+            blocks=list(options.blocks) or None, mount_height_m=options.mount_height_m,
+            radius_m=options.radius_m, allow_outline_only=leds is not None,
+        )
+    else:
+        from .table_layout import read_csv, read_yaml
+
+        reader = read_csv if suffix == ".csv" else read_yaml
+        layout = reader(path, units=options.units, mount_height_m=options.mount_height_m, radius_m=options.radius_m)
+    if not layout.luminaires:
+        if leds is None:
+            raise InputError(f"{path}: holds a room outline but no luminaires; give --leds N to lay out N of them")
+        if layout.outline is None:
+            raise InputError(f"{path}: holds neither luminaires nor a room outline; nothing to plan")
+        height = options.mount_height_m or DEFAULT_MOUNT_HEIGHT_M
+        lums, description = fill_outline(np.array(layout.outline), leds, height, options.radius_m or DEFAULT_RADIUS_M)
+        layout = replace(layout, luminaires=tuple(lums)).with_note(description)
+        if options.mount_height_m is None:
+            layout = layout.with_note(f"mounting height {height} m (default; set with --height)")
+        leds = None  # the fill made exactly that many
+    return check_layout(layout, expected=leds)
+
+
+def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
+    """Plan a checked layout: neighbour graph, then IDs under the chosen scheme."""
+    if options.scheme != "paper":
+        raise UsageError(f"--scheme {options.scheme}: unknown scheme; use 'paper'")
+    xy = layout.xy
+    graph = build_graph(xy)
+    assignment = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
+    return Plan(layout, graph, assignment, options.camera)
+
+
+def default_outdir(layout_path: str | Path) -> Path:
+    """``<layout stem>-vlp/`` next to the layout."""
+    p = Path(layout_path)
+    return p.with_name(p.stem + "-vlp")
+
+
+def _sha256(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True) -> list[Path]:
+    """Write ``plan.yaml``, the annotated DXF and the map into ``outdir``, atomically.
+
+    Everything is written into a temporary directory beside ``outdir`` and moved
+    into place at the end: on any error, no partial output is left. An existing
+    ``outdir`` is replaced only if it is empty or holds a previous plan.
+    """
+    outdir = Path(outdir)
+    if outdir.exists() and not (outdir.is_dir() and (not any(outdir.iterdir()) or (outdir / "plan.yaml").exists())):
+        raise UsageError(f"{outdir}: exists and is not a vlp-plan output directory; choose another -o")
+    outdir.parent.mkdir(parents=True, exist_ok=True)
+    source = Path(plan.layout.source_path)
+    stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
+    try:
+        stage.chmod(0o755)  # mkdtemp makes it private; outputs are for the whole crew
+        text = dump_plan(plan_document(plan, _sha256(source) if source.is_file() else ""))
+        (stage / "plan.yaml").write_text(text, encoding="utf-8")
+        from .dxf_annotate import write_annotated_dxf
+
+        from . import __version__
+
+        is_dxf = source.suffix.lower() == ".dxf"
+        write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),
+                            source_path=source if is_dxf else None, tool_version=__version__)
+        if with_map:
+            from .plan_map import render_map
+
+            render_map(plan, stage / "map.png")
+        names = sorted(p.name for p in stage.iterdir())
+        if outdir.exists():
+            old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")
+            os.replace(outdir, old)
+            os.replace(stage, outdir)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(stage, outdir)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    return [outdir / name for name in names]

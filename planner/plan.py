@@ -1,0 +1,134 @@
+"""The plan: every stage's result for one site, and its file form ``plan.yaml``.
+
+``plan.yaml`` (format ``vlp-plan/1``) is the contract between stages and with
+other tools; ``docs/plan-format.md`` documents every field. Serialisation is
+deterministic: keys in a fixed order, lengths rounded to 1 um.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from . import __version__
+from .assignment import Assignment
+from .camera import Camera
+from .errors import InputError
+from .graph import NeighbourGraph
+from .layout import Layout
+
+FORMAT = "vlp-plan/1"
+_DECIMALS_M = 6
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planned site: layout, neighbour graph, IDs and the camera they were made for."""
+
+    layout: Layout
+    graph: NeighbourGraph
+    assignment: Assignment
+    camera: Camera
+
+    def entries(self) -> list[dict]:
+        """One mapping per luminaire, as in ``plan.yaml``."""
+        a = self.assignment
+        out = []
+        for k, lum in enumerate(self.layout.luminaires):
+            out.append({
+                "name": lum.name,
+                "x": round(lum.x, _DECIMALS_M),
+                "y": round(lum.y, _DECIMALS_M),
+                "z": round(lum.z, _DECIMALS_M),
+                "radius": round(lum.radius, _DECIMALS_M),
+                "parity": "odd" if self.graph.odd[k] else "even",
+                "region": int(a.regions[k]),
+                "id": int(a.ids[k]),
+                "source": dict(lum.source),
+            })
+        return out
+
+
+def _round_pairs(points) -> list[list[float]] | None:
+    if points is None:
+        return None
+    return [[round(float(x), _DECIMALS_M), round(float(y), _DECIMALS_M)] for x, y in points]
+
+
+def plan_document(plan: Plan, source_sha256: str = "") -> dict:
+    """The ``plan.yaml`` mapping of a plan."""
+    a, g, lay = plan.assignment, plan.graph, plan.layout
+    cross = len(g.cross_edges)
+    return {
+        "format": FORMAT,
+        "generator": f"vlp-plan {__version__}",
+        "units": {"length": "m", "angle": "deg", "time": "s"},
+        "source": {
+            "file": Path(lay.source_path).name,
+            "sha256": source_sha256,
+            "unit": lay.unit,
+            "unit_reason": lay.unit_reason,
+            "notes": list(lay.notes),
+        },
+        "scheme": a.scheme,
+        "code": {
+            "bits": a.bits,
+            "max_id": a.max_id,
+            "alphabet": a.alphabet,
+            "naive_bits": a.naive_bits,
+            "lower_bound_bits": a.lower_bound_bits,
+            "efficiency": round(a.efficiency, 4),
+            "method": a.method,
+            **{k: v for k, v in a.detail.items()},
+        },
+        "graph": {
+            "edges": g.graph.number_of_edges(),
+            "cross_edges": cross,
+            "bipartite": g.bipartite,
+            "odd_cycle": [plan.layout.luminaires[v].name for v in g.odd_cycle] if g.odd_cycle else None,
+            "lattice": g.lattice is not None,
+        },
+        "camera": plan.camera.to_dict(),
+        "verification": None,
+        "outline": _round_pairs(lay.outline),
+        "luminaires": plan.entries(),
+    }
+
+
+def dump_plan(document: dict) -> str:
+    """``plan.yaml`` text: block style, one flow mapping per luminaire's source."""
+    return yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120, allow_unicode=True)
+
+
+def plan_hash(text: str) -> str:
+    """Short hash naming a plan's content (first 16 hex digits of SHA-256)."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+_REQUIRED = ("name", "x", "y", "z", "radius", "parity", "region", "id")
+
+
+def load_plan(path: str | Path) -> dict:
+    """Read and check a ``plan.yaml``; raise :class:`InputError` naming the bad field."""
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such plan file; run vlp-plan first") from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path}: not valid YAML ({exc})") from exc
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{path}: not a {FORMAT} plan (field 'format' is {doc.get('format') if isinstance(doc, dict) else None!r})")
+    lums = doc.get("luminaires")
+    if not isinstance(lums, list) or not lums:
+        raise InputError(f"{path}: 'luminaires' must be a non-empty list")
+    for k, entry in enumerate(lums):
+        missing = [f for f in _REQUIRED if not isinstance(entry, dict) or f not in entry]
+        if missing:
+            raise InputError(f"{path}: luminaires[{k}] lacks field {missing[0]!r}")
+        if entry["parity"] not in ("odd", "even"):
+            raise InputError(f"{path}: luminaires[{k}].parity must be 'odd' or 'even'")
+    return doc
