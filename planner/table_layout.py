@@ -107,8 +107,8 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     path = Path(path)
     text = path.read_text(encoding="utf-8-sig")
     unit_in_file = None
-    lines = []
-    for line in text.splitlines():
+    lines, numbers = [], []
+    for number, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
         if stripped.startswith("#"):
             key, _, value = stripped[1:].partition(":")
@@ -117,19 +117,21 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
             continue
         if stripped:
             lines.append(line)
+            numbers.append(number)
     if not lines:
         raise InputError(f"{path}: no rows; expected a header with x,y and one row per luminaire")
     reader = csv.DictReader(lines)
     header = [h.strip().lower() for h in reader.fieldnames or []]
     if "x" not in header or "y" not in header:
-        raise InputError(f"{path}: line 1: header must name columns x and y (found {', '.join(header)})")
+        raise InputError(f"{path}: line {numbers[0]}: header must name columns x and y (found {', '.join(header)})")
     unit = units or unit_in_file or "m"
     scale = _unit_scale(unit, str(path))
     defaults = _defaults(mount_height_m, radius_m, {}, scale, str(path))
     lums = []
     for k, raw in enumerate(reader):
         row = {h.strip().lower(): (v.strip() if isinstance(v, str) else v) for h, v in raw.items() if h}
-        where = f"{path}: line {k + 2}"
-        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": k + 2}))
+        line = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
+        where = f"{path}: line {line}"
+        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": line}))
     reason = "given with --units" if units else ("stated in the file" if unit_in_file else "default (metres)")
     return Layout(tuple(lums), None, str(path), unit, reason)
