@@ -36,6 +36,6 @@ if __name__ == "__main__":
         "The paper's test rig (Table 2): four LEDs 2.5 m up; radius 10 cm assumed (not in the paper).")
     dump("outline-room.yaml", {"unit": "m", "height": 2.5, "outline": [[0, 0], [16, 0], [16, 8], [0, 8]]},
          "A 16 m x 8 m room with no luminaires: use with --leds N.")
-    rows = ["name,x,y,z,radius"] + [f"A{c + 1},{c * 1.2:.1f},{r * 1.2:.1f},2.8,0.1"
+    rows = ["name,x,y,z,radius"] + [f"{'ABC'[r]}{c + 1},{c * 1.2:.1f},{r * 1.2:.1f},2.8,0.1"
                                      for r in range(3) for c in range(4)]
     (HERE / "corridor.csv").write_text("# unit: m\n# A 3 x 4 luminaire corridor, 1.2 m pitch.\n" + "\n".join(rows) + "\n")

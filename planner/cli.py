@@ -136,7 +136,8 @@ def _print_summary(s: dict) -> None:
     print(f"  graph    {s['neighbour_pairs']} neighbour pairs, {shape}")
     print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bits "
           f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
-          f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, {s['regions']} regions")
+          f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
+          f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
 
 

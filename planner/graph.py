@@ -109,13 +109,15 @@ def neighbour_edges(xy: np.ndarray) -> np.ndarray:
 
 
 def principal_angle_of_edges(xy: np.ndarray, edges: np.ndarray) -> float:
-    """Dominant edge direction folded into [0, pi/2) [rad] (mean of 4 theta on the circle)."""
+    """Dominant edge direction folded into (-pi/4, pi/4] [rad] (mean of 4 theta on the circle).
+
+    Rounded to 1e-9 rad so that float noise on an axis-aligned grid gives exactly 0.
+    """
     if len(edges) == 0:
         return 0.0
     d = xy[edges[:, 1]] - xy[edges[:, 0]]
     theta = np.arctan2(d[:, 1], d[:, 0])
-    mean = np.angle(np.exp(4j * theta).sum()) / 4.0
-    return float(mean % (math.pi / 2))
+    return round(float(np.angle(np.exp(4j * theta).sum()) / 4.0), 9)
 
 
 def _axis_ranks(values: np.ndarray, spacing: float) -> np.ndarray | None:
@@ -213,12 +215,12 @@ def _improve_cut(graph: nx.Graph, odd: np.ndarray, max_passes: int = 50) -> np.n
 def build_graph(xy: np.ndarray) -> NeighbourGraph:
     """Neighbour graph and checkerboard classes of plan positions ``xy`` [m], shape (N, 2).
 
-    A lattice layout is coloured by the parity of row + column (the paper's
-    checkerboard), the luminaire in the first row and column being odd; other
-    bipartite layouts are two-coloured exactly. A layout that is not bipartite is coloured
-    by breadth-first search, locally improved so that every luminaire has at
-    least as many neighbours in the other class as in its own; the first odd
-    cycle found is kept as a witness.
+    Bipartite layouts are two-coloured exactly. A layout that is not bipartite is
+    coloured by breadth-first search, locally improved so that every luminaire has
+    at least as many neighbours in the other class as in its own; the first odd
+    cycle found is kept as a witness. A lattice layout is instead coloured by the
+    parity of row + column (the paper's checkerboard; the luminaire in the first
+    row and column is odd) unless that leaves more same-class neighbours.
     """
     xy = np.asarray(xy, dtype=float)
     n = len(xy)
@@ -230,10 +232,16 @@ def build_graph(xy: np.ndarray) -> NeighbourGraph:
     angle = principal_angle_of_edges(xy, edges)
     lattice = detect_lattice(xy, edges, angle)
     bfs_odd, cycle = _bfs_colouring(graph, n)
+    if cycle is not None:
+        bfs_odd = _improve_cut(graph, bfs_odd)
     if lattice is not None:
-        # The lattice's own checkerboard, even where an edge across a missing cell's
-        # corner joins two luminaires of one class (the odd cycle is still reported).
-        return NeighbourGraph(graph, (lattice.sum(axis=1) % 2) == 0, cycle is None, cycle, lattice, angle)
-    if cycle is None:
-        return NeighbourGraph(graph, bfs_odd, True, None, None, angle)
-    return NeighbourGraph(graph, _improve_cut(graph, bfs_odd), False, cycle, None, angle)
+        lattice_odd = (lattice.sum(axis=1) % 2) == 0
+        # The lattice's own checkerboard unless it puts more neighbours in one class
+        # (e.g. rows closed up around an odd row) than the graph's own colouring.
+        if _same_class_count(edges, lattice_odd) <= _same_class_count(edges, bfs_odd):
+            return NeighbourGraph(graph, lattice_odd, cycle is None, cycle, lattice, angle)
+    return NeighbourGraph(graph, bfs_odd, cycle is None, cycle, None, angle)
+
+
+def _same_class_count(edges: np.ndarray, odd: np.ndarray) -> int:
+    return int(np.count_nonzero(odd[edges[:, 0]] == odd[edges[:, 1]])) if len(edges) else 0

@@ -1,0 +1,121 @@
+"""vlp-plan end to end: the bundled layouts, determinism, and bad input."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from planner.cli import console_main, main
+
+ROOT = Path(__file__).resolve().parent.parent
+LAYOUTS = ROOT / "layouts"
+
+
+@pytest.mark.parametrize("name,leds,bits,naive,efficiency", [
+    ("grid-32.yaml", 32, 4, 5, 0.2),
+    ("grid-256.yaml", 256, 6, 8, 0.25),
+    ("grid-512.yaml", 512, 6, 9, 0.3333),
+])
+def test_bundled_grids_reproduce_the_paper(tmp_path, name, leds, bits, naive, efficiency):
+    summary = main([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json"])
+    assert (summary["bits"], summary["naive_bits"], summary["efficiency"]) == (bits, naive, efficiency)
+    doc = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
+    assert doc["format"] == "vlp-plan/1" and doc["code"]["bits"] == bits
+    lums = doc["luminaires"]
+    assert len(lums) == leds
+    # over the whole site, borders included, no adjacent odd/even ID pair repeats
+    by_pos = {(round(e["x"] / 0.5 - 0.5), round(e["y"] / 0.5 - 0.5)): e for e in lums}
+    pairs = []
+    for (c, r), e in by_pos.items():
+        for nb in ((c + 1, r), (c, r + 1)):
+            if nb in by_pos:
+                o, v = sorted([e, by_pos[nb]], key=lambda x: x["parity"] != "odd")
+                assert (o["parity"], v["parity"]) == ("odd", "even") and o["id"] % 2 == 1 and v["id"] % 2 == 0
+                pairs.append((o["id"], v["id"]))
+    assert len(pairs) == len(set(pairs)) == 2 * leds - (16 + 32 if leds == 512 else 32 if leds == 256 else 12)
+
+
+def test_outputs_are_byte_identical_across_runs(tmp_path):
+    for run in ("a", "b"):
+        main([str(LAYOUTS / "dialux-office.dxf"), "-o", str(tmp_path / run), "--json"])
+    names = sorted(p.name for p in (tmp_path / "a").iterdir())
+    assert names == ["dialux-office-vlp.dxf", "map.png", "plan.yaml"]
+    for name in names:
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+
+
+def test_outline_only_drawing_with_leds(tmp_path):
+    summary = main([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json"])
+    assert summary["luminaires"] == 512 and summary["bits"] == 6
+    assert any("lattice" in note for note in summary["notes"])
+
+
+def test_default_outdir_is_next_to_the_layout(tmp_path):
+    layout = tmp_path / "site.csv"
+    layout.write_text("x,y\n0,0\n1,0\n0,1\n1,1\n")
+    main([str(layout), "--json"])
+    assert (tmp_path / "site-vlp" / "plan.yaml").is_file()
+    main([str(layout), "--json"])  # a second run replaces the previous output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site-vlp", "site.csv"]
+
+
+def run(args, cwd):
+    return subprocess.run([sys.executable, "-m", "planner.cli", *args], cwd=cwd, capture_output=True, text=True)
+
+
+def write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+BAD = [
+    # (file name, content, extra args, exit code, message fragment)
+    ("missing.dxf", None, [], 2, "no such file"),
+    ("notes.txt", "hello", [], 2, "unknown layout type"),
+    ("fake.dxf", "this is not a drawing\n", [], 1, "fake.dxf"),
+    ("few.csv", "x,y\n0,0\n1,0\n", [], 1, "only 2 luminaire"),
+    ("close.csv", "x,y\n0,0\n0.05,0\n1,0\n2,0\n", [], 1, "closer than their diameters"),
+    ("count.csv", "x,y\n0,0\n1,0\n0,1\n", ["--leds", "4"], 1, "found 3 luminaires but --leds says 4"),
+    ("room.yaml", "outline: [[0, 0], [5, 0], [5, 5], [0, 5]]\n", [], 1, "give --leds N"),
+    ("empty.yaml", "luminaires: []\n", ["--leds", "9"], 1, "neither luminaires nor a room outline"),
+    ("ok.csv", "x,y\n0,0\n1,0\n0,1\n", ["--leds", "-3"], 2, "--leds"),
+    ("ok2.csv", "x,y\n0,0\n1,0\n0,1\n", ["--frobnicate"], 2, "unrecognized arguments"),
+]
+
+
+@pytest.mark.parametrize("name,content,extra,code,message", BAD, ids=[b[0] for b in BAD])
+def test_bad_input_gives_one_line_and_no_output(tmp_path, name, content, extra, code, message):
+    path = tmp_path / name
+    if content is not None:
+        path.write_text(content)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    result = run([str(path), "-o", str(tmp_path / "out"), *extra], cwd=ROOT)
+    assert result.returncode == code, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert "Traceback" not in result.stderr and result.stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing half-written
+
+
+def test_verbose_shows_the_traceback(tmp_path):
+    path = write(tmp_path, "few.csv", "x,y\n0,0\n1,0\n")
+    result = run([str(path), "--verbose"], cwd=ROOT)
+    assert result.returncode == 1 and "Traceback" in result.stderr
+
+
+def test_refuses_to_replace_a_foreign_directory(tmp_path):
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "thesis.tex").write_text("precious")
+    assert console_main([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "docs")]) == 2
+    assert (tmp_path / "docs" / "thesis.tex").read_text() == "precious"
+
+
+def test_json_summary_is_machine_readable(tmp_path):
+    result = run([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json"], cwd=ROOT)
+    assert result.returncode == 0
+    summary = json.loads(result.stdout)
+    assert summary["bits"] == 4 and summary["lower_bound_bits"] == 4 and summary["regions"] == 2
