@@ -119,3 +119,19 @@ def test_json_summary_is_machine_readable(tmp_path):
     assert result.returncode == 0
     summary = json.loads(result.stdout)
     assert summary["bits"] == 4 and summary["lower_bound_bits"] == 4 and summary["regions"] == 2
+
+
+@pytest.mark.parametrize("make,message", [
+    (lambda f: f.new_drawing(6), "model space is empty"),
+    (lambda f: f.no_luminaires(), "no luminaire matched (preset auto); layers seen: 0 (12)"),
+    (lambda f: f.circles_grid(4, 1.0, 1e7)[0], "pass --units"),
+], ids=["empty", "no-match", "implausible-units"])
+def test_bad_drawings_exit_1_with_one_line(tmp_path, make, message):
+    import dxf_factory
+
+    path = dxf_factory.save(make(dxf_factory), tmp_path / "site.dxf")
+    result = run([str(path)], cwd=ROOT)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site.dxf"]
