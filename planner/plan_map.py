@@ -15,7 +15,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from scipy.spatial import ConvexHull, QhullError  # noqa: E402
 
 from .plan import Plan  # noqa: E402
 
@@ -23,41 +22,53 @@ LABEL_LIMIT = 2000
 """Above this many luminaires, IDs are not written on the map (unreadable)."""
 
 
+def _region_colours(edges: np.ndarray, regions: np.ndarray) -> np.ndarray:
+    """A shade index (0-3) per luminaire such that neighbouring regions differ where possible."""
+    import networkx as nx
+
+    adjacency = nx.Graph()
+    adjacency.add_nodes_from(range(int(regions.max()) + 1))
+    for u, v in edges:
+        if regions[u] != regions[v]:
+            adjacency.add_edge(int(regions[u]), int(regions[v]))
+    colour = nx.greedy_color(adjacency, strategy="largest_first")
+    return np.array([colour[int(r)] % 4 for r in regions])
+
+
 def render_map(plan: Plan, path: str | Path) -> None:
     """Write the plan's map as PNG to ``path``."""
     xy = plan.layout.xy
     ids, regions, odd = plan.assignment.ids, plan.assignment.regions, plan.graph.odd
     lo, hi = xy.min(axis=0), xy.max(axis=0)
-    pad = max(float(np.median([d for *_, d in plan.graph.graph.edges(data="length")] or [1.0])), 0.5)
+    lengths = [d for *_, d in plan.graph.graph.edges(data="length")]
+    pitch = float(np.median(lengths)) if lengths else 1.0
+    pad = max(pitch, 0.5)
     span = np.maximum(hi - lo + 2 * pad, 1.0)
-    scale = min(16.0 / span[0], 12.0 / span[1], 1.2)
-    fig_w, fig_h = max(6.0, span[0] * scale), max(4.5, span[1] * scale + 0.8)
-    fig, ax = plt.subplots(figsize=(fig_w, fig_h), dpi=110)
+    inch_per_m = min(16.0 / span[0], 12.0 / span[1], 1.5)
+    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 1.2), max(4.5, span[1] * inch_per_m + 1.2)), dpi=110)
     n_regions = int(regions.max()) + 1
+    # Regions: a pitch-sized cell behind each luminaire, shaded by region, so groups tile.
+    from matplotlib.collections import LineCollection, PatchCollection
+    from matplotlib.patches import Rectangle
+
+    shades = np.array([0.95, 0.84, 0.90, 0.78])[_region_colours(plan.graph.edges, regions)]
+    cells = [Rectangle((x - pitch / 2, y - pitch / 2), pitch, pitch) for x, y in xy]
+    ax.add_collection(PatchCollection(cells, facecolors=[str(v) for v in shades], edgecolors="none", zorder=0))
     for r in range(n_regions):
-        pts = xy[regions == r]
-        shade = "0.88" if r % 2 == 0 else "0.95"
-        if len(pts) >= 3:
-            try:
-                hull = pts[ConvexHull(pts).vertices]
-                ax.fill(*hull.T, color=shade, zorder=0, linewidth=0)
-            except QhullError:
-                pass
-        cx, cy = pts.mean(axis=0)
-        ax.text(cx, cy, f"R{r}", fontsize=14, color="0.6", ha="center", va="center", zorder=1, weight="bold")
+        cx, cy = xy[regions == r].mean(axis=0)
+        ax.text(cx, cy, f"R{r}", fontsize=12, color="0.2", ha="center", va="center", zorder=5, weight="bold",
+                bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.8, "edgecolor": "0.5"})
     edges = plan.graph.edges
     if len(edges):
         segs = np.stack([xy[edges[:, 0]], xy[edges[:, 1]]], axis=1)
-        from matplotlib.collections import LineCollection
-
-        ax.add_collection(LineCollection(segs, colors="0.7", linewidths=0.5, zorder=2))
-    size = max(4.0, min(120.0, 2500.0 / max(1, len(xy)) ** 0.8))
-    ax.scatter(*xy[odd].T, s=size * 3, c="0.15", edgecolors="black", zorder=3, label="odd (odd IDs)")
-    ax.scatter(*xy[~odd].T, s=size * 3, c="white", edgecolors="black", zorder=3, label="even (even IDs)")
-    if len(xy) <= LABEL_LIMIT:
-        fs = max(3.0, min(8.0, 300.0 / math.sqrt(len(xy))))
+        ax.add_collection(LineCollection(segs, colors="0.6", linewidths=0.5, zorder=2))
+    marker_pt = max(2.0, 0.7 * pitch * inch_per_m * 72)  # marker diameter [pt]
+    ax.scatter(*xy[odd].T, s=marker_pt**2, c="0.15", edgecolors="black", zorder=3, label="odd (odd IDs)")
+    ax.scatter(*xy[~odd].T, s=marker_pt**2, c="white", edgecolors="black", zorder=3, label="even (even IDs)")
+    font_pt = min(10.0, 0.42 * marker_pt)
+    if len(xy) <= LABEL_LIMIT and font_pt >= 3.0:
         for (x, y), i, o in zip(xy, ids, odd):
-            ax.text(x, y, str(int(i)), fontsize=fs, ha="center", va="center", zorder=4,
+            ax.text(x, y, str(int(i)), fontsize=font_pt, ha="center", va="center", zorder=4,
                     color="white" if o else "black")
     if plan.layout.outline:
         ring = np.array(plan.layout.outline + plan.layout.outline[:1])
@@ -73,7 +84,8 @@ def render_map(plan: Plan, path: str | Path) -> None:
     ax.set_aspect("equal")
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, fontsize=8, markerscale=12 / marker_pt,
+              frameon=False)
     fig.tight_layout()
     fig.savefig(path, format="png", metadata={"Software": None})
     plt.close(fig)
