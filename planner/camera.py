@@ -1,9 +1,14 @@
-"""The camera model: the receiver the plan is made for.
+"""The camera model: the receiver the plan is made for, its poses, and what it sees.
 
 Defaults follow the paper's experiment and PRODUCT.md: horizontal field of view
 50.4 deg, a 4000 x 3000 px image (assumed; the paper does not say), receiver
-0.5-1.5 m above the floor, tilt up to 40 deg, rolling-shutter row time 20 us.
-Angles are radians inside; degrees only at the user's edge.
+0.5-1.5 m above the floor, tilt up to 40 deg in any direction, any rotation
+about the optical axis, rolling-shutter row time 20 us. Angles are radians
+inside; degrees only at the user's edge (``to_dict``, camera YAML).
+
+Camera frame: z along the optical axis (towards the ceiling), x to the image's
+right, y down the image; pixel (u, v) = (fx X/Z + cx, fy Y/Z + cy) with the
+origin at the top-left corner.
 """
 
 from __future__ import annotations
@@ -11,17 +16,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Camera:
-    """A pinhole camera with a rolling shutter.
+    """A pinhole camera with a rolling shutter, and the poses it is held in.
 
     Attributes
     ----------
-    hfov_rad : float
-        Horizontal field of view [rad].
     width_px, height_px : int
         Image size [px].
+    fx_px, fy_px, cx_px, cy_px : float
+        Focal lengths and principal point [px].
     min_height_m, max_height_m : float
         Range of receiver heights above the floor [m].
     max_tilt_rad : float
@@ -30,27 +37,147 @@ class Camera:
         Rolling-shutter time between two image rows [s].
     """
 
-    hfov_rad: float = math.radians(50.4)
     width_px: int = 4000
     height_px: int = 3000
+    fx_px: float = 2000.0 / math.tan(math.radians(50.4) / 2)
+    fy_px: float = 2000.0 / math.tan(math.radians(50.4) / 2)
+    cx_px: float = 2000.0
+    cy_px: float = 1500.0
     min_height_m: float = 0.5
     max_height_m: float = 1.5
     max_tilt_rad: float = math.radians(40.0)
     row_time_s: float = 20e-6
 
+    @classmethod
+    def from_fov(cls, hfov_rad: float, width_px: int = 4000, height_px: int = 3000, **kw) -> "Camera":
+        """Square pixels, principal point at the image centre, focal length from the field of view."""
+        f = (width_px / 2) / math.tan(hfov_rad / 2)
+        return cls(width_px, height_px, f, f, width_px / 2, height_px / 2, **kw)
+
     @property
-    def focal_px(self) -> float:
-        """Focal length in pixels, from the horizontal field of view."""
-        return (self.width_px / 2) / math.tan(self.hfov_rad / 2)
+    def hfov_rad(self) -> float:
+        return 2 * math.atan(self.width_px / (2 * self.fx_px))
+
+    @property
+    def intrinsics(self) -> np.ndarray:
+        """The 3 x 3 camera matrix K [px]."""
+        return np.array([[self.fx_px, 0, self.cx_px], [0, self.fy_px, self.cy_px], [0, 0, 1.0]])
 
     def to_dict(self) -> dict:
         """The camera as written into ``plan.yaml`` (degrees and SI units, as named)."""
         return {
-            "hfov_deg": round(math.degrees(self.hfov_rad), 6),
             "width_px": self.width_px,
             "height_px": self.height_px,
-            "focal_px": round(self.focal_px, 3),
+            "fx_px": round(self.fx_px, 3),
+            "fy_px": round(self.fy_px, 3),
+            "cx_px": round(self.cx_px, 3),
+            "cy_px": round(self.cy_px, 3),
+            "hfov_deg": round(math.degrees(self.hfov_rad), 4),
             "receiver_height_m": [self.min_height_m, self.max_height_m],
             "max_tilt_deg": round(math.degrees(self.max_tilt_rad), 6),
             "row_time_s": self.row_time_s,
         }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Camera":
+        """Inverse of :meth:`to_dict`; also accepts ``hfov_deg`` without focal lengths."""
+        extra = {
+            "min_height_m": float(d.get("receiver_height_m", [0.5, 1.5])[0]),
+            "max_height_m": float(d.get("receiver_height_m", [0.5, 1.5])[1]),
+            "max_tilt_rad": math.radians(float(d.get("max_tilt_deg", 40.0))),
+            "row_time_s": float(d.get("row_time_s", 20e-6)),
+        }
+        w, h = int(d.get("width_px", 4000)), int(d.get("height_px", 3000))
+        if "fx_px" in d:
+            return cls(w, h, float(d["fx_px"]), float(d.get("fy_px", d["fx_px"])),
+                       float(d.get("cx_px", w / 2)), float(d.get("cy_px", h / 2)), **extra)
+        return cls.from_fov(math.radians(float(d.get("hfov_deg", 50.4))), w, h, **extra)
+
+
+@dataclass(frozen=True)
+class Poses:
+    """Camera poses.
+
+    Attributes
+    ----------
+    position : numpy.ndarray, shape (P, 3)
+        Camera centre in site coordinates [m].
+    rotation : numpy.ndarray, shape (P, 3, 3)
+        Camera-to-site rotation: columns are the camera's x, y, z axes in site coordinates.
+    tilt_rad : numpy.ndarray, shape (P,)
+        Angle between the optical axis and the vertical [rad].
+    """
+
+    position: np.ndarray
+    rotation: np.ndarray
+    tilt_rad: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+    def subset(self, index) -> "Poses":
+        return Poses(self.position[index], self.rotation[index], self.tilt_rad[index])
+
+
+def rotation_from_angles(tilt_rad, azimuth_rad, roll_rad) -> np.ndarray:
+    """Camera-to-site rotations, shape (P, 3, 3), of a camera looking up.
+
+    Roll turns the camera about its optical axis; then the axis is tilted by
+    ``tilt_rad`` from vertical towards the plan direction ``azimuth_rad``.
+    """
+    tilt, az, roll = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (tilt_rad, azimuth_rad, roll_rad))
+    cr, sr = np.cos(roll), np.sin(roll)
+    base = np.zeros((len(roll), 3, 3))  # level camera, rolled: x, y horizontal, z up
+    base[:, 0, 0], base[:, 1, 0] = cr, sr
+    base[:, 0, 1], base[:, 1, 1] = -sr, cr
+    base[:, 2, 2] = 1.0
+    # Rodrigues rotation by `tilt` about the horizontal axis k = (-sin az, cos az, 0),
+    # which takes the vertical towards (cos az, sin az).
+    k = np.stack([-np.sin(az), np.cos(az), np.zeros_like(az)], axis=1)
+    kx = np.zeros((len(az), 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2] = -k[:, 2], k[:, 1]
+    kx[:, 1, 0], kx[:, 1, 2] = k[:, 2], -k[:, 0]
+    kx[:, 2, 0], kx[:, 2, 1] = -k[:, 1], k[:, 0]
+    st, ct = np.sin(tilt)[:, None, None], np.cos(tilt)[:, None, None]
+    tilt_rot = np.eye(3)[None] + st * kx + (1 - ct) * (kx @ kx)
+    return tilt_rot @ base
+
+
+def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: Camera) -> dict:
+    """Exact perspective images of horizontal LED discs, for pose/LED pairs.
+
+    ``centres`` has shape (P, K, 3) [m] and ``radii`` (P, K) [m]: K LEDs per pose.
+    The disc's image is the conic whose dual is ``C* = H diag(r^2, r^2, -1) H^T``,
+    with ``H`` the homography from the disc's plane to the image, so the image's
+    bounding box is exact (tangent lines ``u = const`` solve a quadratic in ``u``).
+
+    Returns arrays of shape (P, K): ``u``, ``v`` (projected disc centre [px]),
+    ``in_front`` (every rim point in front of the camera), ``inside`` (the whole
+    disc image lies inside the image), and ``depth`` (centre depth along the axis [m]).
+    """
+    rot_t = np.swapaxes(poses.rotation, 1, 2)  # site -> camera
+    c_cam = np.einsum("pij,pkj->pki", rot_t, centres - poses.position[:, None, :])
+    kmat = camera.intrinsics
+    # Columns of H = K [a b c]: a, b the site x and y axes in camera coordinates (per pose).
+    h1 = (rot_t[:, :, 0] @ kmat.T)[:, None, :]
+    h2 = (rot_t[:, :, 1] @ kmat.T)[:, None, :]
+    h3 = c_cam @ kmat.T
+    r2 = radii**2
+
+    def cstar(i: int, j: int) -> np.ndarray:
+        return r2 * (h1[..., i] * h1[..., j] + h2[..., i] * h2[..., j]) - h3[..., i] * h3[..., j]
+
+    depth = c_cam[..., 2]
+    rim_depth = radii * np.hypot(rot_t[:, 2, 0], rot_t[:, 2, 1])[:, None]
+    in_front = depth - rim_depth > 1e-9
+    c22 = cstar(2, 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = h3[..., 0] / h3[..., 2]
+        v = h3[..., 1] / h3[..., 2]
+        inside = in_front.copy()
+        for axis, size in ((0, camera.width_px), (1, camera.height_px)):
+            c00, c02 = cstar(axis, axis), cstar(axis, 2)
+            disc = np.sqrt(np.maximum(c02**2 - c00 * c22, 0.0))
+            lo, hi = (c02 - disc) / c22, (c02 + disc) / c22
+            inside &= (np.minimum(lo, hi) >= 0) & (np.maximum(lo, hi) <= size)
+    return {"u": u, "v": v, "in_front": in_front, "inside": inside, "depth": depth}

@@ -19,7 +19,8 @@ from . import __version__
 from .camera import Camera
 from .errors import PlannerError, UsageError
 from .layout import UNIT_TO_M
-from .pipeline import PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
+from .pipeline import SCHEMES, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
+from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 
 class _Parser(argparse.ArgumentParser):
@@ -69,16 +70,39 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--radius", type=_positive_float, metavar="M",
                    help="LED radius [m] where the layout gives none (default 0.1)")
     g = p.add_argument_group("planning")
-    g.add_argument("--scheme", choices=["paper"], default="paper", help="ID scheme (default: paper region code)")
+    g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
+                   help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
+                   "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
     g.add_argument("--time-limit", type=float, default=10.0, metavar="S",
                    help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10)")
     g.add_argument("--seed", type=int, default=0, help="random seed of the search (default 0)")
+    _add_verify_flags(p)
     g = p.add_argument_group("output")
     g.add_argument("--no-map", action="store_true", help="do not draw map.png")
     g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
     g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
     p.add_argument("--version", action="version", version=f"vlp-plan {__version__}")
     return p
+
+
+def _add_verify_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("verification")
+    g.add_argument("--poses-per-m2", type=_positive_float, default=POSES_PER_M2, metavar="N",
+                   help=f"camera poses sampled per square metre of floor (default {POSES_PER_M2:g})")
+    g.add_argument("--tolerance", type=_positive_float, default=CONGRUENCE_TOLERANCE_M, metavar="M",
+                   help=f"triangles whose sides differ by less than this look alike to the receiver [m] "
+                   f"(default {CONGRUENCE_TOLERANCE_M:g})")
+    g.add_argument("--camera", metavar="YAML", help="camera file (docs/camera.md); default: the paper's camera")
+    if p.prog == "vlp-plan":
+        g.add_argument("--no-verify", action="store_true", help="skip verification (needs an explicit --scheme)")
+
+
+def _camera(args) -> Camera:
+    if not args.camera:
+        return Camera()
+    from .camera_file import read_camera
+
+    return read_camera(args.camera)
 
 
 def _progress(message: str) -> None:
@@ -94,7 +118,8 @@ def main(argv: list[str] | None = None) -> dict:
     _progress(f"reading {args.layout}")
     layout = read_layout(args.layout, args.leds, read_opts)
     _progress(f"planning {len(layout.luminaires)} luminaires")
-    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, Camera()))
+    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, _camera(args), not args.no_verify,
+                                         args.poses_per_m2, args.tolerance))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     _progress(f"writing {outdir}")
     written = write_outputs(plan, outdir, with_map=not args.no_map)
@@ -116,6 +141,9 @@ def main(argv: list[str] | None = None) -> dict:
         "efficiency": round(a.efficiency, 4),
         "regions": int(a.regions.max()) + 1,
         "max_id": a.max_id,
+        "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
+                         if plan.verification is not None else None),
+        "schemes_considered": plan.considered,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
         "seconds": round(time.perf_counter() - t0, 3),
@@ -138,26 +166,49 @@ def _print_summary(s: dict) -> None:
           f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
           f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
           f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
+    if s["schemes_considered"] and len(s["schemes_considered"]) > 1:
+        parts = []
+        for name, c in s["schemes_considered"].items():
+            eff = 1 - c["bits"] / s["naive_bits"] if s["naive_bits"] else 0.0
+            amb = c["ambiguous_poses"]
+            state = "not verified" if amb is None else "verified" if amb == 0 else f"{amb} ambiguous poses"
+            parts.append(f"{name} {c['bits']} bits ({100 * eff:.0f} %, {state})")
+        print(f"  schemes  {'; '.join(parts)}; naive {s['naive_bits']} bits")
+    v = s["verification"]
+    if v:
+        print(f"  verify   {_verification_line(v)}")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
 
 
-def console_main(argv: list[str] | None = None) -> int:
+def _verification_line(v: dict) -> str:
+    n = max(v["poses"], 1)
+    line = (f"{v['poses']} poses: {100 * v['coverage']:.1f} % decodable, {v['ambiguous']} ambiguous, "
+            f"{100 * v['collinear'] / n:.1f} % collinear, {100 * v['too_few_leds'] / n:.1f} % see fewer than 3 LEDs")
+    if v["first_conflicts"]:
+        group = v["first_conflicts"][0]
+        line += "; first conflict: " + " vs ".join("(" + ", ".join(t) + ")" for t in group[:2])
+    return line
+
+
+def console_main(argv: list[str] | None = None, command=None, name: str = "vlp-plan") -> int:
     """Entry point of the ``vlp-plan`` script: one line per error, exit code."""
     verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
     try:
-        main(argv)
+        result = (command or main)(argv)
+        if isinstance(result, int):
+            return result
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()
-        print(f"vlp-plan: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
-        print("vlp-plan: interrupted; no output was written", file=sys.stderr)
+        print(f"{name}: interrupted; no output was written", file=sys.stderr)
         return 130
     except Exception as exc:  # a bug: still one line, unless asked for more
         if verbose:
             traceback.print_exc()
-        print(f"vlp-plan: internal error: {type(exc).__name__}: {exc} (rerun with --verbose and report it)",
+        print(f"{name}: internal error: {type(exc).__name__}: {exc} (rerun with --verbose and report it)",
               file=sys.stderr)
         return 1
     return 0

@@ -21,6 +21,9 @@ from .errors import InputError, UsageError
 from .graph import build_graph
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from .plan import Plan, dump_plan, plan_document
+from .verify import verify_plan
+from .window_scheme import assign_unique, assign_window
+from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
 
@@ -37,14 +40,20 @@ class ReadOptions:
     radius_m: float | None = None
 
 
+SCHEMES = ("auto", "paper", "window", "unique")
+
+
 @dataclass(frozen=True)
 class PlanOptions:
-    """How to plan (scheme, search budget, seed, camera)."""
+    """How to plan: scheme, search budget, seed, camera, and verification sampling."""
 
-    scheme: str = "paper"
+    scheme: str = "auto"
     time_budget: float = 10.0
     seed: int = 0
     camera: Camera = field(default_factory=Camera)
+    verify: bool = True
+    poses_per_m2: float = POSES_PER_M2
+    tolerance_m: float = CONGRUENCE_TOLERANCE_M
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -83,13 +92,51 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
 
 
 def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
-    """Plan a checked layout: neighbour graph, then IDs under the chosen scheme."""
-    if options.scheme != "paper":
-        raise UsageError(f"--scheme {options.scheme}: unknown scheme; use 'paper'")
-    xy = layout.xy
+    """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification.
+
+    ``auto`` makes the paper's and the window scheme, verifies both, and keeps the
+    one with fewer bits that has no ambiguous pose (the paper's on a tie); if
+    neither verifies, one unique ID per luminaire.
+    """
+    if options.scheme not in SCHEMES:
+        raise UsageError(f"--scheme {options.scheme}: unknown scheme; use one of {', '.join(SCHEMES)}")
+    if options.scheme == "auto" and not options.verify:
+        raise UsageError("--no-verify needs an explicit --scheme: auto chooses the scheme by verifying it")
+    xy, xyz = layout.xy, layout.xyz
+    radii = np.array([lum.radius for lum in layout.luminaires])
     graph = build_graph(xy)
-    assignment = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
-    return Plan(layout, graph, assignment, options.camera)
+    cam = options.camera
+
+    def check(ids):
+        if not options.verify:
+            return None
+        return verify_plan(xyz, radii, ids, layout.outline, cam, per_m2=options.poses_per_m2, seed=options.seed,
+                           tolerance_m=options.tolerance_m)
+
+    made = {}
+    if options.scheme in ("paper", "auto"):
+        paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
+        made["paper"] = (paper, check(paper.ids))
+    if options.scheme in ("window", "auto"):
+        made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
+                                       time_budget=options.time_budget, per_m2=options.poses_per_m2,
+                                       tolerance_m=options.tolerance_m)
+    if options.scheme == "unique":
+        unique = assign_unique(xy, graph)
+        made["unique"] = (unique, check(unique.ids))
+    if options.scheme == "auto":
+        clean = [k for k, (_, v) in made.items() if not v.conflicts]
+        if clean:
+            chosen = min(clean, key=lambda k: (made[k][0].bits, k != "paper"))
+        else:
+            unique = assign_unique(xy, graph)
+            made["unique"] = (unique, check(unique.ids))
+            chosen = "unique"
+    else:
+        chosen = options.scheme
+    assignment, verification = made[chosen]
+    considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None)} for k, (a, v) in made.items()}
+    return Plan(layout, graph, assignment, cam, verification, considered)
 
 
 def default_outdir(layout_path: str | Path) -> Path:
@@ -127,9 +174,11 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True) -> l
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),
                             source_path=source if is_dxf else None, tool_version=__version__)
         if with_map:
-            from .plan_map import render_map
+            from .plan_map import render_coverage, render_map
 
             render_map(plan, stage / "map.png")
+            if plan.verification is not None:
+                render_coverage(plan, stage / "coverage.png")
         names = sorted(p.name for p in stage.iterdir())
         if outdir.exists():
             old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")

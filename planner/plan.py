@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
@@ -19,6 +20,9 @@ from .camera import Camera
 from .errors import InputError
 from .graph import NeighbourGraph
 from .layout import Layout
+
+if TYPE_CHECKING:
+    from .verify import Verification
 
 FORMAT = "vlp-plan/1"
 _DECIMALS_M = 6
@@ -32,6 +36,8 @@ class Plan:
     graph: NeighbourGraph
     assignment: Assignment
     camera: Camera
+    verification: "Verification | None" = None
+    considered: dict | None = None
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -91,8 +97,10 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
             "odd_cycle": [plan.layout.luminaires[v].name for v in g.odd_cycle] if g.odd_cycle else None,
             "lattice": g.lattice is not None,
         },
+        "schemes_considered": plan.considered,
         "camera": plan.camera.to_dict(),
-        "verification": None,
+        "verification": (plan.verification.summary([lum.name for lum in lay.luminaires])
+                         if plan.verification is not None else None),
         "outline": _round_pairs(lay.outline),
         "luminaires": plan.entries(),
     }

@@ -89,3 +89,48 @@ def render_map(plan: Plan, path: str | Path) -> None:
     fig.tight_layout()
     fig.savefig(path, format="png", metadata={"Software": None})
     plt.close(fig)
+
+
+COVERAGE_BIN_M = 0.25
+"""Side of the squares over which the coverage map averages poses [m]."""
+
+
+def render_coverage(plan: Plan, path: str | Path) -> None:
+    """Write the verification's coverage map as PNG: share of decodable poses per square.
+
+    Dark is bad: black squares decode nowhere, white everywhere; ambiguous poses are
+    marked with crosses, luminaires drawn as small circles.
+    """
+    from .verify import AMBIGUOUS, DECODABLE
+
+    v = plan.verification
+    xy = plan.layout.xy
+    pos = v.position[:, :2]
+    lo = np.minimum(pos.min(axis=0), xy.min(axis=0)) - COVERAGE_BIN_M
+    hi = np.maximum(pos.max(axis=0), xy.max(axis=0)) + COVERAGE_BIN_M
+    bins = [np.arange(lo[k], hi[k] + COVERAGE_BIN_M, COVERAGE_BIN_M) for k in (0, 1)]
+    total, _, _ = np.histogram2d(pos[:, 0], pos[:, 1], bins=bins)
+    good, _, _ = np.histogram2d(pos[v.status == DECODABLE, 0], pos[v.status == DECODABLE, 1], bins=bins)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(total > 0, good / total, np.nan)
+    span = hi - lo
+    inch_per_m = min(14.0 / span[0], 10.0 / span[1], 1.5)
+    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 2.0), max(4.5, span[1] * inch_per_m + 1.2)),
+                           dpi=110)
+    cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
+    mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
+    fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)
+    ax.scatter(*xy.T, s=12, facecolors="none", edgecolors="0.35", linewidths=0.6, label="luminaire")
+    amb = v.status == AMBIGUOUS
+    if amb.any():
+        ax.scatter(*pos[amb].T, marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
+    ax.set_title(
+        f"{Path(plan.layout.source_path).name}: {plan.assignment.scheme} scheme, {v.poses} poses, "
+        f"{100 * v.coverage:.1f} % decodable, {v.count(AMBIGUOUS)} ambiguous", fontsize=10)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=8, frameon=False)
+    fig.tight_layout()
+    fig.savefig(path, format="png", metadata={"Software": None})
+    plt.close(fig)

@@ -20,7 +20,8 @@ LAYOUTS = ROOT / "layouts"
     ("grid-512.yaml", 512, 6, 9, 0.3333),
 ])
 def test_bundled_grids_reproduce_the_paper(tmp_path, name, leds, bits, naive, efficiency):
-    summary = main([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json"])
+    summary = main([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json",
+                    "--scheme", "paper"])
     assert (summary["bits"], summary["naive_bits"], summary["efficiency"]) == (bits, naive, efficiency)
     doc = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
     assert doc["format"] == "vlp-plan/1" and doc["code"]["bits"] == bits
@@ -42,14 +43,14 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
     for run in ("a", "b"):
         main([str(LAYOUTS / "dialux-office.dxf"), "-o", str(tmp_path / run), "--json"])
     names = sorted(p.name for p in (tmp_path / "a").iterdir())
-    assert names == ["dialux-office-vlp.dxf", "map.png", "plan.yaml"]
+    assert names == ["coverage.png", "dialux-office-vlp.dxf", "map.png", "plan.yaml"]
     for name in names:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
 
 
 def test_outline_only_drawing_with_leds(tmp_path):
     summary = main([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json"])
-    assert summary["luminaires"] == 512 and summary["bits"] == 6
+    assert summary["luminaires"] == 512 and summary["schemes_considered"]["paper"]["bits"] == 6
     assert any("lattice" in note for note in summary["notes"])
 
 
@@ -118,7 +119,8 @@ def test_json_summary_is_machine_readable(tmp_path):
     result = run([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json"], cwd=ROOT)
     assert result.returncode == 0
     summary = json.loads(result.stdout)
-    assert summary["bits"] == 4 and summary["lower_bound_bits"] == 4 and summary["regions"] == 2
+    assert summary["schemes_considered"]["paper"] == {"bits": 4, "ambiguous_poses": 0}
+    assert summary["verification"]["ambiguous"] == 0
 
 
 @pytest.mark.parametrize("make,message", [
