@@ -27,21 +27,35 @@ class _Parser(argparse.ArgumentParser):
     """argparse that raises UsageError instead of exiting, so main() stays testable."""
 
     def error(self, message: str):  # type: ignore[override]
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+        raise UsageError(f"{message} (see {self.prog} --help)")
 
 
 def _positive_int(text: str) -> int:
-    value = int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
     if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text}")
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
+    return value
+
+
+def _number(text: str, minimum: float, strict: bool) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (value > minimum if strict else value >= minimum) or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {text!r}")
     return value
 
 
 def _positive_float(text: str) -> float:
-    value = float(text)
-    if not value > 0 or math.isinf(value):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
-    return value
+    return _number(text, 0.0, strict=True)
+
+
+def _non_negative_float(text: str) -> float:
+    return _number(text, 0.0, strict=False)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -73,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
                    help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
                    "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
-    g.add_argument("--time-limit", type=float, default=10.0, metavar="S",
+    g.add_argument("--time-limit", type=_non_negative_float, default=10.0, metavar="S",
                    help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10)")
     g.add_argument("--seed", type=int, default=0, help="random seed of the search (default 0)")
     _add_verify_flags(p)

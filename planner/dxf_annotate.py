@@ -16,16 +16,19 @@ from pathlib import Path
 from typing import Iterator
 
 import ezdxf
+from importlib import resources
 from ezdxf.document import Drawing
 from ezdxf.enums import TextEntityAlignment
 
 from .dxf_layout import load_drawing
-from .dxf_units import UNIT_TO_M
+from .layout import UNIT_TO_M
 from .errors import InputError
 from .layout import DEFAULT_RADIUS_M, Layout
 
 __all__ = ["write_annotated_dxf", "dxf_bytes", "fixed_metadata", "ID_LAYER", "LUM_LAYER", "APPID"]
 
+EMPTY_DXF = "empty-r2010-metres.dxf"
+"""An empty R2010 drawing in metres ($INSUNITS = 6), made once by ezdxf.new()."""
 ID_LAYER = "VLP-ID"
 LUM_LAYER = "VLP-LUM"
 OUTLINE_LAYER = "VLP-OUTLINE"
@@ -109,8 +112,10 @@ def write_annotated_dxf(
         scale = UNIT_TO_M[layout.unit]
         _remove_layer_entities(doc, (ID_LAYER,))
     else:
-        with fixed_metadata():
-            doc = ezdxf.new("R2010", units=6)
+        # A shipped empty drawing, not ezdxf.new(): new() allocates handles in an order
+        # that depends on PYTHONHASHSEED, which made outputs differ between runs.
+        with fixed_metadata(), resources.as_file(resources.files("planner") / "data" / EMPTY_DXF) as empty:
+            doc = ezdxf.readfile(empty)
         scale = 1.0
         doc.header["$MEASUREMENT"] = 1
         doc.layers.add(LUM_LAYER, color=3)

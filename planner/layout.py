@@ -70,6 +70,9 @@ class Layout:
         Why that unit was used, for the summary.
     notes : tuple of str
         What the reader fixed or decided (merged parts, recovered entities, ...).
+    fill_height_m, fill_radius_m : float or None
+        Mounting height and LED radius the file states for luminaires laid out by
+        ``--leds`` in its outline [m].
     """
 
     luminaires: tuple[Luminaire, ...]
@@ -78,6 +81,8 @@ class Layout:
     unit: str = "m"
     unit_reason: str = "stated by the layout"
     notes: tuple[str, ...] = ()
+    fill_height_m: float | None = None
+    fill_radius_m: float | None = None
 
     @property
     def xy(self) -> np.ndarray:

@@ -78,14 +78,18 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
         reader = read_csv if suffix == ".csv" else read_yaml
         layout = reader(path, units=options.units, mount_height_m=options.mount_height_m, radius_m=options.radius_m)
     if not layout.luminaires:
-        if leds is None:
-            raise InputError(f"{path}: holds a room outline but no luminaires; give --leds N to lay out N of them")
         if layout.outline is None:
             raise InputError(f"{path}: holds neither luminaires nor a room outline; nothing to plan")
-        height = options.mount_height_m or DEFAULT_MOUNT_HEIGHT_M
-        lums, description = fill_outline(np.array(layout.outline), leds, height, options.radius_m or DEFAULT_RADIUS_M)
+        if leds is None:
+            raise InputError(f"{path}: holds a room outline but no luminaires; give --leds N to lay out N of them")
+        height = options.mount_height_m or layout.fill_height_m or DEFAULT_MOUNT_HEIGHT_M
+        radius = options.radius_m or layout.fill_radius_m or DEFAULT_RADIUS_M
+        try:
+            lums, description = fill_outline(np.array(layout.outline), leds, height, radius)
+        except InputError as exc:
+            raise InputError(f"{path}: {exc}") from None
         layout = replace(layout, luminaires=tuple(lums)).with_note(description)
-        if options.mount_height_m is None:
+        if options.mount_height_m is None and layout.fill_height_m is None:
             layout = layout.with_note(f"mounting height {height} m (default; set with --height)")
         leds = None  # the fill made exactly that many
     return check_layout(layout, expected=leds)

@@ -7,7 +7,7 @@ subset of a rectangular lattice, with a proof instead of a search:
 
 * Groups are the translates of a fundamental domain of a block lattice
   ``Lambda = <(a, 0), (b, d)>`` (columns, rows), which must lie inside
-  ``Lc = {(i, j): j even, i = j mod 4}``; ``a`` and ``d`` are multiples of 4
+  ``Lc = {(i, j): j even, i = j mod 4}``: ``a`` a multiple of 4, ``d`` even
   and ``b = d mod 4``. The alphabet has ``K = a * d`` IDs, one group's worth.
 * Fixed class (odd IDs): the ID is the cell's position in its group.
 * Permuted class (even IDs): the cell's coset of ``Lc`` (4 cosets per class) and,
@@ -60,7 +60,7 @@ def block_lattices(alphabet: int):
         if alphabet % a:
             continue
         d = alphabet // a
-        if d % 4:
+        if d % 2:  # (b, d) in Lc needs d even and b = d mod 4
             continue
         found.extend((a, b, d) for b in range(0, a) if (b - d) % 4 == 0)
     return sorted(found, key=lambda abd: (abs(math.log(abd[0] / abd[2])), abd[1], abd[0]))

@@ -19,9 +19,12 @@ from ortools.sat.python import cp_model
 
 from .graph import NeighbourGraph
 
-CPSAT_MAX_CROSS_EDGES = 400
+CPSAT_MAX_CROSS_EDGES = 300
 """CP-SAT is tried only up to this many cross edges: beyond it, its AllDifferent model
 rarely finds a shorter code within budget (459 luminaires: nothing in 137 s)."""
+
+WALL_FACTOR = 3.0
+"""Wall-clock safety stop of a CP-SAT call, in multiples of its deterministic budget."""
 
 
 def _bfs_order(graph: NeighbourGraph) -> list[int]:
@@ -68,11 +71,14 @@ def greedy_labels(graph: NeighbourGraph) -> np.ndarray:
     return label
 
 
-def cpsat_labels(graph: NeighbourGraph, per_class: int, time_budget: float, seed: int) -> np.ndarray | None:
-    """Labels with at most ``per_class`` labels in each class, or None if none found.
+def cpsat_labels(graph: NeighbourGraph, per_class: int, time_budget: float,
+                 seed: int) -> tuple[np.ndarray | None, bool]:
+    """Labels with at most ``per_class`` labels in each class (or None), and whether the
+    wall-clock safety stop ended the search.
 
     ``time_budget`` is CP-SAT's deterministic time (about seconds on a typical
-    machine, but reproducible): the same input and seed give the same answer.
+    machine, but reproducible): the same input and seed give the same answer,
+    unless the wall-clock stop (``WALL_FACTOR`` times the budget) ended it first.
     """
     odd = graph.odd
     n = len(odd)
@@ -87,14 +93,15 @@ def cpsat_labels(graph: NeighbourGraph, per_class: int, time_budget: float, seed
         model.Add(x[0] == 0)  # labels are interchangeable: fix one
     solver = cp_model.CpSolver()
     solver.parameters.max_deterministic_time = time_budget
-    solver.parameters.max_time_in_seconds = 3.0 * time_budget  # safety net; not normally reached
+    solver.parameters.max_time_in_seconds = WALL_FACTOR * time_budget  # safety net, see cpsat_wall_stopped
     solver.parameters.num_workers = 2
     solver.parameters.interleave_search = True
     solver.parameters.random_seed = seed
     status = solver.Solve(model)
+    wall_stopped = solver.WallTime() >= 0.99 * WALL_FACTOR * time_budget
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        return None
-    return np.array([solver.Value(v) for v in x], dtype=np.int64)
+        return None, wall_stopped
+    return np.array([solver.Value(v) for v in x], dtype=np.int64), wall_stopped
 
 
 def labels_to_ids(odd: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -109,10 +116,13 @@ def search(graph: NeighbourGraph, min_bits: int, time_budget: float, seed: int) 
     bits = max(1, math.ceil(math.log2(int(ids.max()))))
     small = len(graph.cross_edges) <= CPSAT_MAX_CROSS_EDGES
     while small and bits - 1 >= max(min_bits, 1) and time_budget > 0:
-        labels = cpsat_labels(graph, 2 ** (bits - 2), time_budget, seed)
+        labels, wall_stopped = cpsat_labels(graph, 2 ** (bits - 2), time_budget, seed)
+        if wall_stopped:
+            method += " (CP-SAT stopped by the wall clock: the result may differ on another machine)"
         if labels is None:
             break
         ids = labels_to_ids(graph.odd, labels)
-        method = "CP-SAT"
+        method = "CP-SAT" + (" (stopped by the wall clock: the result may differ on another machine)"
+                             if wall_stopped else "")
         bits = max(1, math.ceil(math.log2(int(ids.max()))))
     return ids, method

@@ -96,8 +96,10 @@ def read_yaml(path: str | Path, *, units: str | None = None, mount_height_m: flo
             raise InputError(f"{path}: 'outline' must be a list of [x, y] points") from None
         if len(outline) < 3:
             raise InputError(f"{path}: 'outline' needs at least 3 points")
-    reason = "given with --units" if units else ("stated in the file" if "unit" in doc else "default (metres)")
-    return Layout(tuple(lums), outline, str(path), unit, reason)
+    reason = "given with --units" if units else ("stated in the file" if "unit" in doc else "the default")
+    return Layout(tuple(lums), outline, str(path), unit, reason,
+                  fill_height_m=defaults["z"] if doc.get("height") is not None else None,
+                  fill_radius_m=defaults["radius"] if doc.get("radius") is not None else None)
 
 
 def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: float | None = None,
@@ -133,5 +135,5 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
         line = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
         where = f"{path}: line {line}"
         lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": line}))
-    reason = "given with --units" if units else ("stated in the file" if unit_in_file else "default (metres)")
+    reason = "given with --units" if units else ("stated in the file" if unit_in_file else "the default")
     return Layout(tuple(lums), None, str(path), unit, reason)

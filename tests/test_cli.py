@@ -137,3 +137,18 @@ def test_bad_drawings_exit_1_with_one_line(tmp_path, make, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["site.dxf"]
+
+
+def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
+    """Regression: ezdxf.new() allocated handles in a hash-seed dependent order."""
+    import os
+
+    digests = []
+    for seed in ("1", "4", "11"):
+        out = tmp_path / f"s{seed}"
+        env = dict(os.environ, PYTHONHASHSEED=seed)
+        result = subprocess.run([sys.executable, "-m", "planner.cli", str(LAYOUTS / "grid-32.yaml"), "-o", str(out)],
+                                cwd=ROOT, env=env, capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+        digests.append({p.name: p.read_bytes() for p in out.iterdir()})
+    assert digests[0] == digests[1] == digests[2]
