@@ -1,0 +1,159 @@
+"""Verification: windows, keys, coverage, and vlp-verify on real plans."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from conftest import grid_xy
+from planner.camera import Camera, Poses, project_discs, rotation_from_angles
+from planner.graph import build_graph
+from planner.verify import AMBIGUOUS, DECODABLE, verify_plan
+from planner.window_code import window_keys
+from planner.window_scheme import assign_window
+from planner.windows import canonical_windows, find_windows, sample_poses, working_area
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_disc_images_match_dense_rim_sampling():
+    cam = Camera()
+    rng = np.random.default_rng(0)
+    n, k = 400, 6
+    tilt = rng.uniform(0, np.radians(40), n)
+    poses = Poses(np.column_stack([rng.uniform(-1, 1, (n, 2)), rng.uniform(0.5, 1.5, n)]),
+                  rotation_from_angles(tilt, rng.uniform(0, 6.3, n), rng.uniform(0, 6.3, n)), tilt)
+    centres = np.concatenate([rng.uniform(-3, 3, (n, k, 2)), np.full((n, k, 1), 2.5)], axis=2)
+    radii = np.full((n, k), 0.1)
+    out = project_discs(poses, centres, radii, cam)
+    a = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
+    rim = centres[..., None, :] + 0.1 * np.stack([np.cos(a), np.sin(a), 0 * a], -1)
+    cam_pts = np.einsum("pji,pkaj->pkai", poses.rotation, rim - poses.position[:, None, None, :])
+    u = cam.fx_px * cam_pts[..., 0] / cam_pts[..., 2] + cam.cx_px
+    v = cam.fy_px * cam_pts[..., 1] / cam_pts[..., 2] + cam.cy_px
+    inside = (cam_pts[..., 2] > 0).all(-1) & (u.min(-1) >= 0) & (u.max(-1) <= 4000) & (v.min(-1) >= 0) & (v.max(-1) <= 3000)
+    assert inside.sum() > 50  # the check is not vacuous
+    assert np.array_equal(inside, out["inside"])
+
+
+def test_level_camera_looks_straight_up():
+    r = rotation_from_angles(0.0, 0.3, 0.0)[0]
+    assert np.allclose(r[:, 2], [0, 0, 1])
+    r = rotation_from_angles(np.radians(30), np.radians(90), 1.0)[0]
+    assert np.allclose(r[:, 2], [0, np.sin(np.radians(30)), np.cos(np.radians(30))])
+    assert np.allclose(r.T @ r, np.eye(3))
+
+
+def test_window_is_the_three_seen_leds_nearest_the_image_centre():
+    xy = grid_xy(6, 6, 0.5, 0.5)
+    xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
+    cam = Camera()
+    poses = Poses(np.array([[1.1, 1.1, 1.0]]), rotation_from_angles([0.0], [0.0], [0.0]), np.zeros(1))
+    pw = find_windows(poses, xyz, np.full(len(xy), 0.1), cam)
+    # level camera 1.5 m below the ceiling at (1.1, 1.1): nearest LEDs (1,1), (1.5,1) / (1,1.5) in some order
+    centre = np.argmin(np.hypot(*(xy - [1.1, 1.1]).T))
+    assert centre in pw.triples[0]
+    d = np.sort(np.hypot(*(xy[pw.triples[0]] - [1.1, 1.1]).T))
+    assert np.all(d <= np.sort(np.hypot(*(xy - [1.1, 1.1]).T))[3] + 1e-9)
+
+
+def test_canonical_windows_are_counter_clockwise_and_classed_by_shape():
+    xyz = np.array([[0, 0, 2.5], [1, 0, 2.5], [0, 1, 2.5], [5, 5, 2.5], [5, 6, 2.5], [4, 5, 2.5], [9, 0, 2.5],
+                    [11, 0, 2.5], [10, 1.7320508, 2.5]])
+    ws = canonical_windows(np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]]), xyz)
+    for w in ws.windows:
+        p = xyz[w]
+        (ax, ay), (bx, by) = p[1, :2] - p[0, :2], p[2, :2] - p[0, :2]
+        assert ax * by - ay * bx > 0
+    # the two L triangles are congruent (one class), the equilateral one is symmetric
+    assert ws.shape[0] == ws.shape[1] != ws.shape[2]
+    assert ws.symmetric[ws.shape[2]] and not ws.symmetric[ws.shape[0]]
+
+
+def test_unique_ids_never_ambiguous_and_repeated_ids_are():
+    xy = grid_xy(6, 10, 0.5, 0.5)
+    xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
+    radii = np.full(len(xy), 0.1)
+    unique = verify_plan(xyz, radii, np.arange(1, len(xy) + 1), None, Camera(), per_m2=300)
+    assert unique.count(AMBIGUOUS) == 0 and unique.count(DECODABLE) > 0.5 * unique.poses
+    same = verify_plan(xyz, radii, np.ones(len(xy), dtype=int), None, Camera(), per_m2=300)
+    assert same.count(DECODABLE) == 0 and same.count(AMBIGUOUS) == unique.count(DECODABLE)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rows=st.integers(3, 8), cols=st.integers(3, 10), jitter=st.floats(0, 0.12), seed=st.integers(0, 1000))
+def test_window_scheme_plans_never_share_a_key(rows, cols, jitter, seed):
+    xy = grid_xy(rows, cols, 0.5, 0.5, jitter_m=jitter, seed=seed)
+    xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
+    radii = np.full(len(xy), 0.1)
+    assignment, check = assign_window(xyz, radii, None, build_graph(xy), Camera(), seed=seed, time_budget=1.0,
+                                      per_m2=150)
+    assert check.conflicts == []
+    ws = check.windows
+    keys = window_keys(ws.windows, ws.shape, ws.symmetric, assignment.ids - 1, int(assignment.ids.max()))
+    assert len(np.unique(keys)) == len(keys)
+    # and on an independent pose sample too
+    again = verify_plan(xyz, radii, assignment.ids, None, Camera(), per_m2=150, seed=seed + 7)
+    assert again.count(AMBIGUOUS) <= 0.01 * again.poses
+
+
+def plan_cli(args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", *args], cwd=cwd, capture_output=True, text=True)
+
+
+def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path):
+    out = tmp_path / "out"
+    made = plan_cli(["planner.cli", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheme", "window"])
+    assert made.returncode == 0, made.stderr
+    ok = plan_cli(["planner.verify_cli", str(out / "plan.yaml")])
+    assert ok.returncode == 0 and "0 ambiguous" in ok.stdout
+    doc = yaml.safe_load((out / "plan.yaml").read_text())
+    lums = doc["luminaires"]
+    xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums])
+    ids = np.array([e["id"] for e in lums])
+    ws = verify_plan(xyz, np.full(len(lums), 0.1), ids, doc["outline"], Camera(), per_m2=400).windows
+    swap = None
+    for i in range(len(lums)):  # find two luminaires whose swapped IDs make two windows alike
+        for j in range(i + 1, len(lums)):
+            if ids[i] == ids[j]:
+                continue
+            trial = ids.copy()
+            trial[[i, j]] = trial[[j, i]]
+            if len(np.unique(window_keys(ws.windows, ws.shape, ws.symmetric, trial - 1, int(trial.max())))) < len(ws):
+                swap = (i, j)
+                break
+        if swap:
+            break
+    assert swap is not None
+    i, j = swap
+    lums[i]["id"], lums[j]["id"] = lums[j]["id"], lums[i]["id"]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(doc, sort_keys=False))
+    result = plan_cli(["planner.verify_cli", str(bad), "--map", str(tmp_path / "cov.png")])
+    assert result.returncode == 3, result.stdout + result.stderr
+    named = [line for line in result.stdout.splitlines() if "same key:" in line]
+    assert named and any(lums[i]["name"] in line or lums[j]["name"] in line for line in named)
+    assert (tmp_path / "cov.png").stat().st_size > 1000
+
+
+def test_vlp_verify_bad_plan_file(tmp_path):
+    bad = tmp_path / "plan.yaml"
+    bad.write_text("format: something-else\n")
+    result = plan_cli(["planner.verify_cli", str(bad)])
+    assert result.returncode == 1 and "not a vlp-plan/1 plan" in result.stderr
+
+
+def test_working_area_is_the_hull_without_an_outline():
+    xy = grid_xy(3, 4)
+    area = working_area(xy, None)
+    (ax, ay), (bx, by) = area[1] - area[0], area[2] - area[1]
+    assert len(area) == 4 and np.isclose(abs(ax * by - ay * bx), 6.0)
+    poses = sample_poses(area, Camera(), per_m2=50, seed=3)
+    assert abs(len(poses) - 300) <= 1
+    assert np.all((poses.position[:, 2] >= 0.5) & (poses.position[:, 2] <= 1.5))
+    assert np.all(poses.tilt_rad <= np.radians(40) + 1e-12)
