@@ -89,7 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
     g.add_argument("--time-limit", type=_non_negative_float, default=10.0, metavar="S",
                    help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10)")
-    g.add_argument("--seed", type=int, default=0, help="random seed of the search (default 0)")
+    g.add_argument("--seed", type=int, default=0, help="random seed of the search and the pose sample (default 0)")
+    g.add_argument("--check-distance", type=_positive_int, default=1, metavar="D",
+                   help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
+                   "detected (default 1: no check bits)")
     _add_verify_flags(p)
     g = p.add_argument_group("output")
     g.add_argument("--no-map", action="store_true", help="do not draw map.png")
@@ -133,7 +136,7 @@ def main(argv: list[str] | None = None) -> dict:
     layout = read_layout(args.layout, args.leds, read_opts)
     _progress(f"planning {len(layout.luminaires)} luminaires")
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, _camera(args), not args.no_verify,
-                                         args.poses_per_m2, args.tolerance))
+                                         args.poses_per_m2, args.tolerance, args.check_distance))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     _progress(f"writing {outdir}")
     written = write_outputs(plan, outdir, with_map=not args.no_map)
@@ -155,6 +158,8 @@ def main(argv: list[str] | None = None) -> dict:
         "efficiency": round(a.efficiency, 4),
         "regions": int(a.regions.max()) + 1,
         "max_id": a.max_id,
+        "check_distance": plan.check.distance,
+        "word_bits": plan.check.word_bits,
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
@@ -180,6 +185,9 @@ def _print_summary(s: dict) -> None:
           f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
           f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
           f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
+    if s["check_distance"] > 1:
+        print(f"  check    sent as {s['word_bits']}-bit codewords ({s['word_bits'] - s['bits']} check bits, "
+              f"Hamming distance {s['check_distance']}: up to {s['check_distance'] - 1} misread bits detected)")
     if s["schemes_considered"] and len(s["schemes_considered"]) > 1:
         parts = []
         for name, c in s["schemes_considered"].items():

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .assignment import assign_paper
+from .check_bits import check_code
 from .camera import Camera
 from .errors import InputError, UsageError
 from .graph import build_graph
@@ -54,6 +55,7 @@ class PlanOptions:
     verify: bool = True
     poses_per_m2: float = POSES_PER_M2
     tolerance_m: float = CONGRUENCE_TOLERANCE_M
+    check_distance: int = 1
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -140,7 +142,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         chosen = options.scheme
     assignment, verification = made[chosen]
     considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None)} for k, (a, v) in made.items()}
-    return Plan(layout, graph, assignment, cam, verification, considered)
+    check = check_code(assignment.max_id, assignment.bits, options.check_distance)
+    return Plan(layout, graph, assignment, cam, verification, considered, check)
 
 
 def default_outdir(layout_path: str | Path) -> Path:

@@ -22,6 +22,7 @@ from .graph import NeighbourGraph
 from .layout import Layout
 
 if TYPE_CHECKING:
+    from .check_bits import CheckCode
     from .verify import Verification
 
 FORMAT = "vlp-plan/1"
@@ -38,6 +39,7 @@ class Plan:
     camera: Camera
     verification: "Verification | None" = None
     considered: dict | None = None
+    check: "CheckCode | None" = None
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -53,6 +55,8 @@ class Plan:
                 "parity": "odd" if self.graph.odd[k] else "even",
                 "region": int(a.regions[k]),
                 "id": int(a.ids[k]),
+                **({"codeword": int(self.check.codewords[a.ids[k] - 1])}
+                   if self.check is not None and self.check.distance > 1 else {}),
                 "source": dict(lum.source),
             })
         return out
@@ -87,6 +91,9 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
             "naive_bits": a.naive_bits,
             "lower_bound_bits": a.lower_bound_bits,
             "efficiency": round(a.efficiency, 4),
+            "check_distance": plan.check.distance if plan.check else 1,
+            "word_bits": plan.check.word_bits if plan.check else a.bits,
+            "check_bits": plan.check.check_bits if plan.check else 0,
             "method": a.method,
             **{k: v for k, v in a.detail.items()},
         },
