@@ -49,8 +49,9 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
 
 
 def test_outline_only_drawing_with_leds(tmp_path):
-    summary = main([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json"])
-    assert summary["luminaires"] == 512 and summary["schemes_considered"]["paper"]["bits"] == 6
+    summary = main([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json",
+                    "--scheme", "paper"])
+    assert summary["luminaires"] == 512 and summary["bits"] == 6 and summary["verification"]["ambiguous"] == 0
     assert any("lattice" in note for note in summary["notes"])
 
 
