@@ -18,6 +18,7 @@ import numpy as np
 from .errors import UsageError
 
 MAX_WORD_BITS = 24
+MAX_DISTANCE = 8
 
 
 @dataclass(frozen=True)
@@ -45,20 +46,32 @@ class CheckCode:
 
 
 def lexicode(word_bits: int, distance: int, limit: int) -> list[int]:
-    """The first ``limit`` codewords of the length-``word_bits`` lexicode of distance ``distance``."""
-    words: list[int] = []
-    for w in range(1 << word_bits):
-        if all(bin(w ^ c).count("1") >= distance for c in words):
-            words.append(w)
-            if len(words) == limit:
-                break
-    return words
+    """The first ``limit`` codewords of the length-``word_bits`` lexicode of distance ``distance``.
+
+    Candidates are screened in blocks against the words kept so far (vectorised);
+    the few survivors of a block are then taken in order, as the greedy rule says.
+    """
+    words = np.empty(0, dtype=np.uint32)
+    block = 4096
+    for start in range(0, 1 << word_bits, block):
+        cand = np.arange(start, min(start + block, 1 << word_bits), dtype=np.uint32)
+        if len(words):
+            far = (np.bitwise_count(cand[:, None] ^ words[None, :]) >= distance).all(axis=1)
+            cand = cand[far]
+        kept: list[int] = []
+        for w in cand.tolist():
+            if all(bin(w ^ c).count("1") >= distance for c in kept):
+                kept.append(w)
+                if len(words) + len(kept) == limit:
+                    return words.tolist() + kept
+        words = np.concatenate([words, np.array(kept, dtype=np.uint32)])
+    return words.tolist()
 
 
 def check_code(alphabet: int, id_bits: int, distance: int) -> CheckCode:
     """The shortest lexicode with at least ``alphabet`` codewords at ``distance``."""
-    if distance < 1:
-        raise UsageError(f"--check-distance {distance}: must be at least 1")
+    if not 1 <= distance <= MAX_DISTANCE:
+        raise UsageError(f"--check-distance {distance}: must be from 1 to {MAX_DISTANCE}")
     if distance == 1:
         return CheckCode(1, id_bits, id_bits, np.arange(alphabet, dtype=np.int64))
     for word_bits in range(id_bits + 1, MAX_WORD_BITS + 1):

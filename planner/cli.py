@@ -58,13 +58,20 @@ def _non_negative_float(text: str) -> float:
     return _number(text, 0.0, strict=False)
 
 
+EXIT_AMBIGUOUS = 3
+LOW_COVERAGE = 0.5
+"""Below this share of decodable poses, vlp-plan warns that the site is poorly covered."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(
         prog="vlp-plan",
         description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
-        "(DXF) or a luminaire list (YAML/CSV), give every luminaire an ID under the paper's region code, "
-        "and write plan.yaml, an annotated DXF and a map into OUTDIR.",
-        epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error. Docs: docs/cli.md.",
+        "(DXF) or a luminaire list (YAML/CSV), give every luminaire a short ID (the paper's region code, "
+        "or shorter IDs that keep every camera window unique), verify the plan under a tilted camera, and "
+        "write plan.yaml, an annotated DXF, map.png and coverage.png into OUTDIR.",
+        epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
+        "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
     )
     p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .yaml/.yml or .csv")
     p.add_argument("--leds", type=_positive_int, metavar="N",
@@ -95,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "detected (default 1: no check bits)")
     _add_verify_flags(p)
     g = p.add_argument_group("output")
-    g.add_argument("--no-map", action="store_true", help="do not draw map.png")
+    g.add_argument("--no-map", action="store_true", help="do not draw map.png and coverage.png")
     g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
     g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
     p.add_argument("--version", action="version", version=f"vlp-plan {__version__}")
@@ -109,9 +116,14 @@ def _add_verify_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--tolerance", type=_positive_float, default=CONGRUENCE_TOLERANCE_M, metavar="M",
                    help=f"triangles whose sides differ by less than this look alike to the receiver [m] "
                    f"(default {CONGRUENCE_TOLERANCE_M:g})")
-    g.add_argument("--camera", metavar="YAML", help="camera file (docs/camera.md); default: the paper's camera")
     if p.prog == "vlp-plan":
-        g.add_argument("--no-verify", action="store_true", help="skip verification (needs an explicit --scheme)")
+        g.add_argument("--camera", metavar="YAML", help="camera file (docs/camera.md); default: the paper's camera")
+        g.add_argument("--no-verify", action="store_true",
+                       help="skip verification of a paper or unique plan (needs an explicit --scheme; the window "
+                       "scheme is built from verification and always verified)")
+    else:
+        g.add_argument("--camera", metavar="YAML",
+                       help="camera file (docs/camera.md); default: the camera recorded in the plan")
 
 
 def _camera(args) -> Camera:
@@ -171,6 +183,15 @@ def main(argv: list[str] | None = None) -> dict:
         print(json.dumps(summary, indent=2))
     else:
         _print_summary(summary)
+    v = plan.verification
+    if v is not None and v.coverage < LOW_COVERAGE:
+        print(f"vlp-plan: warning: only {100 * v.coverage:.1f} % of sampled poses decode "
+              f"({v.count(3)} of {v.poses} see fewer than 3 whole LEDs): the luminaires may be too far apart "
+              "for this camera; see coverage.png", file=sys.stderr)
+    if v is not None and v.conflicts:
+        print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
+              "scheme; see coverage.png and vlp-verify", file=sys.stderr)
+        summary["exit_code"] = EXIT_AMBIGUOUS
     return summary
 
 
@@ -181,7 +202,7 @@ def _print_summary(s: dict) -> None:
         print(f"           note: {note}")
     shape = "bipartite" if s["bipartite"] else f"NOT bipartite (odd cycle {' - '.join(s['odd_cycle'])})"
     print(f"  graph    {s['neighbour_pairs']} neighbour pairs, {shape}")
-    print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bits "
+    print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bit{'s' if s['bits'] != 1 else ''} "
           f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
           f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
           f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
@@ -219,6 +240,8 @@ def console_main(argv: list[str] | None = None, command=None, name: str = "vlp-p
         result = (command or main)(argv)
         if isinstance(result, int):
             return result
+        if isinstance(result, dict) and "exit_code" in result:
+            return int(result["exit_code"])
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()

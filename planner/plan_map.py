@@ -63,8 +63,11 @@ def render_map(plan: Plan, path: str | Path) -> None:
         segs = np.stack([xy[edges[:, 0]], xy[edges[:, 1]]], axis=1)
         ax.add_collection(LineCollection(segs, colors="0.6", linewidths=0.5, zorder=2))
     marker_pt = max(2.0, 0.7 * pitch * inch_per_m * 72)  # marker diameter [pt]
-    ax.scatter(*xy[odd].T, s=marker_pt**2, c="0.15", edgecolors="black", zorder=3, label="odd (odd IDs)")
-    ax.scatter(*xy[~odd].T, s=marker_pt**2, c="white", edgecolors="black", zorder=3, label="even (even IDs)")
+    paper = plan.assignment.scheme == "paper"
+    ax.scatter(*xy[odd].T, s=marker_pt**2, c="0.15", edgecolors="black", zorder=3,
+               label="odd class" + (" (odd IDs)" if paper else ""))
+    ax.scatter(*xy[~odd].T, s=marker_pt**2, c="white", edgecolors="black", zorder=3,
+               label="even class" + (" (even IDs)" if paper else ""))
     font_pt = min(10.0, 0.42 * marker_pt)
     if len(xy) <= LABEL_LIMIT and font_pt >= 3.0:
         for (x, y), i, o in zip(xy, ids, odd):
@@ -84,7 +87,7 @@ def render_map(plan: Plan, path: str | Path) -> None:
     ax.set_aspect("equal")
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, fontsize=8, markerscale=12 / marker_pt,
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, markerscale=12 / marker_pt,
               frameon=False)
     fig.tight_layout()
     fig.savefig(path, format="png", metadata={"Software": None})
@@ -130,7 +133,7 @@ def render_coverage(plan: Plan, path: str | Path) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=8, frameon=False)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     fig.savefig(path, format="png", metadata={"Software": None})
     plt.close(fig)

@@ -16,6 +16,7 @@ import numpy as np
 
 from . import cli
 from .camera import Camera
+from .errors import UsageError
 from .plan import load_plan
 from .verify import verify_plan
 
@@ -40,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.map and not Path(args.map).resolve().parent.is_dir():
+        raise UsageError(f"--map {args.map}: directory {Path(args.map).parent} does not exist")
     doc = load_plan(args.plan)
     lums = doc["luminaires"]
     xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums], dtype=float)

@@ -43,6 +43,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
                                           seed=seed, time_budget=time_budget)
     labels, k = code.labels, code.K
     triples = design.windows
+    ws = design
     method = code.method
     for _ in range(REPAIR_ROUNDS):
         check = verify_plan(xyz, radii, labels + 1, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
@@ -62,7 +63,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         check = verify_plan(xyz, radii, labels + 1, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
     ids = labels.astype(np.int64) + 1
     bits = bits_for(max(k, 2))
-    detail = {"windows": len(triples), "labels": int(k), "optimal": bool(code.optimal and bits == code.bits),
+    detail = {"windows": len(ws), "labels": int(k), "optimal": bool(code.optimal and bits == code.bits),
               "lower_bound_labels": int(code.lower_bound_labels)}
     assignment = Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, bits_for(n),
                             int(code.lower_bound_bits), method, detail)

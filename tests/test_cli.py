@@ -153,3 +153,27 @@ def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
         assert result.returncode == 0, result.stderr
         digests.append({p.name: p.read_bytes() for p in out.iterdir()})
     assert digests[0] == digests[1] == digests[2]
+
+
+def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_path):
+    import numpy as np
+
+    rng = np.random.default_rng(0)  # a 16 x 16 lattice jittered by up to 0.3 pitch: no longer a lattice
+    k = np.arange(256)
+    pts = 0.5 * (np.stack([k % 16, k // 16], 1) + rng.uniform(-0.3, 0.3, (256, 2)))
+    layout = write(tmp_path, "jitter.csv", "x,y\n" + "".join(f"{x:.4f},{y:.4f}\n" for x, y in pts))
+    result = run([str(layout), "-o", str(tmp_path / "out"), "--scheme", "paper"], cwd=ROOT)
+    assert result.returncode == 3, result.stderr
+    assert "sampled poses are ambiguous under the paper scheme" in result.stderr
+    plan = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
+    assert plan["verification"]["ambiguous"] > 0 and plan["verification"]["first_conflicts"]
+    auto = run([str(layout), "-o", str(tmp_path / "auto"), "--json"], cwd=ROOT)
+    assert auto.returncode == 0  # auto keeps a scheme that verifies
+    assert json.loads(auto.stdout)["verification"]["ambiguous"] == 0
+
+
+def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path):
+    main([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json", "--scheme", "paper"])
+    result = subprocess.run([sys.executable, "-m", "planner.verify_cli", str(tmp_path / "o" / "plan.yaml"),
+                             "--map", str(tmp_path / "no" / "such" / "map.png")], cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 2 and "does not exist" in result.stderr and "Traceback" not in result.stderr
