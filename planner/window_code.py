@@ -4,24 +4,26 @@ A window (PRODUCT.md, "What decodable means") is three luminaires read as their
 labels in counter-clockwise order plus the shape of their triangle. Its *key* is
 ``(shape, L[w0], L[w1], L[w2])``, or for a 3-fold symmetric (equilateral) shape
 the smallest cyclic rotation of the three labels. A labelling with ``K`` labels is
-valid when all keys differ. Labels are found by min-conflicts local search
-(vectorised repair sweeps, then tabu min-conflicts with incremental key counts) and,
+valid when all keys differ. Labels are found by local search (vectorised
+min-conflicts repair sweeps, then a focused heat-bath search with incremental key counts) and,
 for small sites, OR-Tools CP-SAT, which can also prove a bit width infeasible.
 Everything is deterministic given the seed: budgets are steps, never seconds.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from itertools import repeat
 
 import numpy as np
 from ortools.sat.python import cp_model
 
-DENSE_MAX = 1 << 24
+DENSE_MAX = 1 << 23
 """Key counts live in a dense array when ``shapes * K**3`` is at most this, else a dict."""
 LS_STEPS_PER_SECOND = 5000
-"""Local-search steps granted per second of ``time_budget`` (about 5-10k steps/s measured)."""
+"""Local-search steps granted per second of ``time_budget`` (5-15k steps/s measured, by K and degree)."""
+TEMPERATURE = 0.6
+"""Heat-bath temperature [conflicting pairs]: 0.6-0.7 suits K = 16 (16 x 32 L windows), 0.5 K = 32."""
 _SWEEP_CHUNK = 1 << 21
 """Candidate codes evaluated at once in a repair sweep (memory ~ 16 bytes each)."""
 
@@ -33,6 +35,7 @@ class WindowCode:
     ``labels`` (shape (n,), 0..K-1) is what each luminaire broadcasts in ``bits`` bits;
     ``K = 2**bits``. ``lower_bound_labels``/``lower_bound_bits`` come from counting keys.
     ``optimal`` is True when ``bits`` equals the bound or CP-SAT proved ``bits - 1`` infeasible.
+    ``method`` is ``"local search"``, ``"CP-SAT"`` or ``"distinct labels"``.
     """
 
     labels: np.ndarray
@@ -68,22 +71,27 @@ def _encode(t: np.ndarray, sym: np.ndarray, K: int) -> np.ndarray:
 
 
 def window_keys(windows, shape, symmetric, labels, K: int) -> np.ndarray:
-    """Key of every window as an int64 code ``shape * K**3 + triple``: equal codes iff equal keys."""
+    """Key of every window as an int64 code: equal codes iff equal keys.
+
+    The code is ``shape * K**3 + triple`` (base K; smallest rotation for symmetric shapes),
+    or that pair's rank among the windows when many shapes and labels would overflow int64.
+    """
     w, s, sym = _arrays(windows, shape, symmetric)
-    if (int(s.max(initial=0)) + 1) * K ** 3 >= 2 ** 62:
-        raise ValueError(f"K = {K} with {int(s.max(initial=0)) + 1} shapes overflows int64 keys")
-    t = np.asarray(labels, dtype=np.int64)[w]
-    return s * K ** 3 + _encode(t, sym, K)
-
-
-def _pairs(codes: np.ndarray) -> int:
-    _, c = np.unique(codes, return_counts=True)
-    return int((c * (c - 1) // 2).sum())
+    K, lab = int(K), np.asarray(labels, dtype=np.int64).reshape(-1)
+    if len(lab) and (lab.min() < 0 or lab.max() >= K):
+        raise ValueError(f"labels must lie in 0..{K - 1}")
+    if K >= 2 ** 21:
+        raise ValueError(f"K = {K} labels overflow int64 keys")
+    triple = _encode(lab[w], sym, K)
+    if (int(s.max(initial=0)) + 1) * K ** 3 < 2 ** 62:
+        return s * K ** 3 + triple
+    return np.unique(np.column_stack([s, triple]), axis=0, return_inverse=True)[1].reshape(-1)  # ranks
 
 
 def count_conflicts(windows, shape, symmetric, labels, K: int) -> int:
     """Number of conflicting window pairs (0 iff the labelling is valid)."""
-    return _pairs(window_keys(windows, shape, symmetric, labels, K))
+    _, c = np.unique(window_keys(windows, shape, symmetric, labels, K), return_counts=True)
+    return int((c * (c - 1) // 2).sum())
 
 
 def conflicting_windows(windows, shape, symmetric, labels, K: int) -> np.ndarray:
@@ -109,27 +117,23 @@ def lower_bound_labels(shape, symmetric) -> int:
     return max([1] + [_labels_for(int(c), bool(sym[i])) for i, c in enumerate(counts) if c])
 
 
-def _bits(K: int) -> int:
-    """Bits to send labels 0..K-1: ``ceil(log2 K)``, at least 1."""
-    return max(1, math.ceil(math.log2(K))) if K > 1 else 1
-
-
 class _Counts:
-    """Exact multiset of key codes: dense array or dict."""
+    """Exact multiset of key codes: a dense array (with a spare zero slot that the pad code -1
+    reads) or, for large key spaces, a dict."""
 
     def __init__(self, codes: np.ndarray, size: int):
-        self.dense = np.bincount(codes, minlength=size).astype(np.int64) if size <= DENSE_MAX else None
+        self.dense = np.bincount(codes, minlength=size + 1) if size <= DENSE_MAX else None
+        self.d: dict[int, int] = {}
         if self.dense is None:
-            u, c = np.unique(codes, return_counts=True)
-            self.d = dict(zip(u.tolist(), c.tolist()))
+            keys, counts = np.unique(codes, return_counts=True)
+            self.d = dict(zip(keys.tolist(), counts.tolist()))
 
     def many(self, C: np.ndarray) -> np.ndarray:
         if self.dense is not None:
-            return np.where(C >= 0, self.dense[np.maximum(C, 0)], 0)
-        d = self.d
-        return np.fromiter((d.get(c, 0) for c in C.ravel().tolist()), np.int64, C.size).reshape(C.shape)
+            return self.dense[C]
+        return np.fromiter(map(self.d.get, C.ravel().tolist(), repeat(0)), np.int64, C.size).reshape(C.shape)
 
-    def __getitem__(self, c: int) -> int:
+    def get(self, c: int) -> int:
         return int(self.dense[c]) if self.dense is not None else self.d.get(c, 0)
 
     def add(self, c: int, delta: int) -> int:
@@ -137,54 +141,62 @@ class _Counts:
         if self.dense is not None:
             self.dense[c] += delta
             return int(self.dense[c])
-        v = self.d.get(c, 0) + delta
-        if v:
-            self.d[c] = v
-        else:
-            del self.d[c]
+        v = self.d[c] = self.d.get(c, 0) + delta
         return v
 
 
 class _Problem:
-    """Windows with their incidence: for luminaire u, the windows through it and u's position."""
+    """Windows and their incidence: for luminaire u, the windows through it (``inc_w``, padded
+    with the dummy window M whose code is -1) and u's position in each (``inc_p``)."""
 
     def __init__(self, n: int, windows, shape, symmetric, K: int):
-        self.w, s, self.sym = _arrays(windows, shape, symmetric)
-        self.n, self.K, self.M = n, K, len(self.w)
+        w, s, sym = _arrays(windows, shape, symmetric)
+        n, K = int(n), int(K)
+        self.n, self.K, self.M = n, K, len(w)
         self.size = (int(s.max(initial=0)) + 1) * K ** 3
         if self.size >= 2 ** 62:
             raise ValueError(f"K = {K} overflows int64 keys")
-        self.off = s * K ** 3
-        lum = self.w.ravel()
+        self.w = np.vstack([w, np.zeros((1, 3), np.int64)])
+        self.off = np.append(s * K ** 3, -1)
+        self.sym = np.append(sym, False)
+        self.any_sym = bool(sym.any())
+        lum = w.ravel()
+        if len(lum) and (lum.min() < 0 or lum.max() >= n):
+            raise ValueError(f"window luminaire indices must lie in 0..{n - 1}")
         order = np.argsort(lum, kind="stable")
-        deg = np.bincount(lum, minlength=n)
-        D = max(1, int(deg.max(initial=0)))
-        start = np.concatenate([[0], np.cumsum(deg)[:-1]])
-        col = np.arange(len(lum)) - np.repeat(start, deg)
-        self.inc_w = np.zeros((n, D), np.int64)
-        self.inc_p = np.zeros((n, D), np.int64)
-        self.inc_v = np.zeros((n, D), bool)
+        self.deg = np.bincount(lum, minlength=n)
+        col = np.arange(len(lum)) - np.repeat(np.cumsum(self.deg) - self.deg, self.deg)
+        shape_ = (n, max(1, int(self.deg.max(initial=0))))
+        self.inc_w = np.full(shape_, self.M, np.int64)
+        self.inc_p = np.zeros(shape_, np.int64)
         self.inc_w[lum[order], col] = order // 3
         self.inc_p[lum[order], col] = order % 3
-        self.inc_v[lum[order], col] = True
-        self.used = deg > 0
+        self.inc_wt = np.where(self.inc_w < self.M, K ** (2 - self.inc_p), 0)  # u's digit weight
 
     def codes(self, lab: np.ndarray) -> np.ndarray:
-        return self.off + _encode(lab[self.w], self.sym, self.K)
+        """Key codes of all windows, plus -1 for the dummy window: shape (M + 1,)."""
+        c = self.off + _encode(lab[self.w], self.sym, self.K)
+        c[-1] = -1
+        return c
 
-    def candidates(self, lab: np.ndarray, us: np.ndarray) -> np.ndarray:
-        """Codes of the windows through each ``us`` with its label set to 0..K-1: (len(us), D, K); -1 pads."""
-        K, wi, p = self.K, self.inc_w[us], self.inc_p[us]
-        t, sym = lab[self.w[wi]], self.sym[wi]
-        ks = np.arange(K, dtype=np.int64)
-        tp = np.take_along_axis(t, p[..., None], axis=-1)[..., 0]
+    def candidates(self, lab: np.ndarray, codes: np.ndarray, us: np.ndarray) -> np.ndarray:
+        """Codes of the windows through each of ``us`` with its label set to 0..K-1: (len(us), D, K).
+
+        Pads (the dummy window) are -1 for every label, so they never change a label's score.
+        """
+        K, wi, ks = self.K, self.inc_w[us], np.arange(self.K, dtype=np.int64)
+        tp = lab[us][:, None]  # u's own label, at position p of each of its windows
+        if not self.any_sym:  # the digit of u in each window's code is replaced
+            wt = self.inc_wt[us]
+            return (codes[wi] - tp * wt)[..., None] + ks * wt[..., None]
+        p, t, sym = self.inc_p[us], lab[self.w[wi]], self.sym[wi]
         best = None
-        for r in range(3 if sym.any() else 1):
+        for r in range(3):
             enc = (t[..., r] * K + t[..., (r + 1) % 3]) * K + t[..., (r + 2) % 3]
             weight = K ** (2 - (p - r) % 3)
             cand = (enc - tp * weight)[..., None] + ks * weight[..., None]
             best = cand if best is None else np.where(sym[..., None], np.minimum(best, cand), best)
-        return np.where(self.inc_v[us][..., None], best + self.off[wi][..., None], -1)
+        return np.where((wi < self.M)[..., None], best + self.off[wi][..., None], -1)
 
 
 def _sweeps(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_sweeps: int = 60) -> int:
@@ -192,7 +204,7 @@ def _sweeps(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_sweep
     best_lab, best, prev = lab.copy(), None, None
     for _ in range(max_sweeps + 1):
         codes = prob.codes(lab)
-        uniq, inv, cnts = np.unique(codes, return_inverse=True, return_counts=True)
+        uniq, inv, cnts = np.unique(codes[:-1], return_inverse=True, return_counts=True)
         pairs = int((cnts * (cnts - 1) // 2).sum())
         if best is None or pairs < best:
             best, best_lab = pairs, lab.copy()
@@ -204,12 +216,17 @@ def _sweeps(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_sweep
         move = np.delete(conf, keep)  # all but one window of each shared key
         us = np.unique(prob.w[move, rng.integers(0, 3, len(move))])
         step = max(1, _SWEEP_CHUNK // (prob.inc_w.shape[1] * prob.K))
+        dense = np.bincount(codes[:-1], minlength=prob.size + 1) if prob.size <= DENSE_MAX else None
         new = np.empty(len(us), np.int64)
-        for a in range(0, len(us), step):
+        for a in range(0, len(us), step):  # each luminaire's best label against the snapshot
             chunk = us[a:a + step]
-            C = prob.candidates(lab, chunk)
-            idx = np.minimum(np.searchsorted(uniq, C), len(uniq) - 1)
-            cnt = np.where(uniq[idx] == C, cnts[idx], 0) - (C == codes[prob.inc_w[chunk]][..., None])
+            C = prob.candidates(lab, codes, chunk)
+            if dense is not None:
+                cnt = dense[C]
+            else:
+                idx = np.minimum(np.searchsorted(uniq, C), len(uniq) - 1)
+                cnt = np.where(uniq[idx] == C, cnts[idx], 0)
+            cnt -= C == codes[prob.inc_w[chunk]][..., None]
             cost = cnt.sum(axis=1) + rng.random((len(chunk), prob.K)) * 0.5
             new[a:a + step] = cost.argmin(axis=1)
         lab[us] = new
@@ -217,59 +234,52 @@ def _sweeps(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_sweep
     return best
 
 
-def _min_conflicts(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_steps: int,
-                   noise: float = 0.05) -> int:
-    """Tabu min-conflicts from ``lab``; leaves the best labels found in ``lab``, returns its pairs."""
+def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_steps: int,
+                    temperature: float = TEMPERATURE) -> int:
+    """Focused heat-bath search from ``lab``; leaves the best labels in ``lab``, returns its pairs.
+
+    Each step takes a random conflicting window, scores every label for each of its
+    three luminaires by the change in conflicting pairs (exact, from incremental key
+    counts) and draws one move with probability ``exp(-delta / temperature)``.
+    """
     K, w = prob.K, prob.w
     codes = prob.codes(lab)
-    counts = _Counts(codes, prob.size)
-    _, inv, c = np.unique(codes, return_inverse=True, return_counts=True)
+    counts = _Counts(codes[:-1], prob.size)
+    _, inv, c = np.unique(codes[:-1], return_inverse=True, return_counts=True)
     pairs = int((c * (c - 1) // 2).sum())
     listed = c[inv] >= 2
     todo = np.flatnonzero(listed).tolist()  # holds all but at most one window of each shared key
     best, best_lab = pairs, lab.copy()
-    tabu: dict[int, np.ndarray] = {}
-    big = 1 << 40
+    three = np.arange(3)
     step = 0
     while pairs > 0 and step < max_steps and todo:
         j = int(rng.integers(len(todo)))
         m = todo[j]
-        if counts[int(codes[m])] < 2:  # resolved meanwhile: drop lazily
+        if counts.get(int(codes[m])) < 2:  # resolved meanwhile: drop lazily
             todo[j] = todo[-1]
             todo.pop()
             listed[m] = False
             continue
         step += 1
         us = w[m]
-        C = prob.candidates(lab, us)  # (3, D, K)
+        C = prob.candidates(lab, codes, us)  # (3, D, K)
         wi = prob.inc_w[us]
-        cur = np.where(prob.inc_v[us], codes[wi], -2)
-        cost = counts.many(C) - (C[..., None] == cur[:, None, None, :]).sum(-1)
+        # pairs each label would put u's windows in: others sharing the key (u's own windows
+        # move, so their current keys do not count) plus repeats among u's windows; the pads'
+        # terms are the same for every label and cancel in delta
+        cost = counts.many(C) - (C[..., None] == codes[wi][:, None, None, :]).sum(-1)
         Cs = np.sort(C, axis=1)
-        dup = (Cs[:, 1:] == Cs[:, :-1]) & (Cs[:, 1:] >= 0)
-        cost = cost.sum(axis=1) + dup.sum(axis=1)  # (3, K): pairs u's windows would be in
+        cost = cost.sum(axis=1) + (Cs[:, 1:] == Cs[:, :-1]).sum(axis=1)
         now = lab[us]
-        delta = cost - cost[np.arange(3), now][:, None]
-        delta[np.arange(3), now] = big
-        if rng.random() < noise:
-            i = int(rng.integers(3))
-            k = int((now[i] + 1 + rng.integers(K - 1)) % K) if K > 1 else 0
-        else:
-            for i in range(3):
-                t = tabu.get(int(us[i]))
-                if t is not None:
-                    delta[i] = np.where((t > step) & (pairs + delta[i] >= best), big, delta[i])
-            flat = int((delta + rng.random(delta.shape) * 0.5).argmin())
-            i, k = divmod(flat, K)
-            if delta[i, k] >= big:
-                continue
-        u = int(us[i])
-        if K == 1 or k == now[i]:
+        delta = cost - cost[three, now][:, None]
+        weight = np.exp((delta.min() - delta) / temperature).ravel()
+        cum = np.cumsum(weight)
+        i, k = divmod(min(int(np.searchsorted(cum, rng.random() * cum[-1], side="right")), 3 * K - 1), K)
+        if k == now[i]:
             continue
-        tabu.setdefault(u, np.zeros(K, np.int64))[now[i]] = step + 5 + int(rng.integers(10))
+        u = int(us[i])
         lab[u] = k
-        for d in np.flatnonzero(prob.inc_v[u]).tolist():
-            m2, new = int(wi[i, d]), int(C[i, d, k])
+        for m2, new in zip(wi[i, :prob.deg[u]].tolist(), C[i, :prob.deg[u], k].tolist()):
             pairs -= counts.add(int(codes[m2]), -1)
             after = counts.add(new, 1)
             pairs += after - 1
@@ -287,7 +297,7 @@ def _local_search(prob: _Problem, lab: np.ndarray, seed: int, max_steps: int) ->
     rng = np.random.default_rng(seed)
     pairs = _sweeps(prob, lab, rng) if prob.M else 0
     if pairs and max_steps > 0:
-        pairs = _min_conflicts(prob, lab, rng, max_steps)
+        pairs = _focused_search(prob, lab, rng, max_steps)
     return pairs
 
 
@@ -295,7 +305,7 @@ def search_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0,
                   max_steps: int = 100_000) -> np.ndarray | None:
     """A valid labelling with labels 0..K-1 by local search from random labels, or None.
 
-    ``max_steps`` bounds the min-conflicts moves (after at most 60 repair sweeps).
+    ``max_steps`` bounds the focused-search steps (after at most 60 repair sweeps).
     """
     prob = _Problem(n, windows, shape, symmetric, K)
     lab = np.random.default_rng([seed, 1]).integers(0, K, n).astype(np.int64)
@@ -348,6 +358,7 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
     solver.parameters.num_workers = 2
     solver.parameters.interleave_search = True
     solver.parameters.random_seed = seed
+    solver.parameters.stop_after_first_solution = True  # else a long interleaved task runs on to the wall limit
     status = solver.Solve(model)
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
         return None, status == cp_model.INFEASIBLE
@@ -361,33 +372,36 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
 
 def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time_budget: float = 10.0,
                        cpsat_max_windows: int = 3000) -> WindowCode:
-    """Fewest bits (K = 2**bits labels) with all window keys distinct.
+    """Fewest bits (``K = 2**bits`` labels) with all window keys distinct; deterministic.
 
-    From the counting bound upwards: local search (``LS_STEPS_PER_SECOND * time_budget``
-    moves), then, for at most ``cpsat_max_windows`` windows, CP-SAT for ``time_budget``
-    deterministic seconds. Once ``2**bits >= n`` distinct labels always work.
+    From the counting bound upwards, each bit width gets local search
+    (``LS_STEPS_PER_SECOND * time_budget`` steps) and then, with at most
+    ``cpsat_max_windows`` windows, CP-SAT for ``time_budget`` deterministic seconds,
+    hinted with the local search's best labels; CP-SAT also proves widths infeasible.
+    Distinct labels for every luminaire always work, so the loop ends once ``K >= n``.
     """
-    w, s, sym = _arrays(windows, shape, symmetric)
+    w, s, _ = _arrays(windows, shape, symmetric)
+    if len(np.unique(np.column_stack([s, np.sort(w, axis=1)]), axis=0)) < len(w):
+        raise ValueError("two windows of one shape hold the same three luminaires")
     lb = lower_bound_labels(s, symmetric)
-    lbb = _bits(lb)
+    lbb = max(1, (lb - 1).bit_length())  # ceil(log2 lb), at least 1
     steps = int(LS_STEPS_PER_SECOND * time_budget)
     proved_below = False
-    b = lbb
-    while True:
+    for b in range(lbb, 64):
         K = 2 ** b
-        prob = _Problem(n, w, s, symmetric, K)
+        if (int(s.max(initial=0)) + 1) * K ** 3 >= 2 ** 62:  # keys overflow: only absurd shape counts
+            b = max(b, (n - 1).bit_length())
+            return WindowCode(np.arange(n, dtype=np.int64), 2 ** b, b, lb, lbb, "distinct labels", False)
         lab = np.random.default_rng([seed, b]).integers(0, K, n).astype(np.int64)
-        method = "min-conflicts local search"
-        if _local_search(prob, lab, seed, steps) == 0:
-            found = lab
-        else:
-            found, proved = None, False
+        method, proved = "local search", False
+        if _local_search(_Problem(n, w, s, symmetric, K), lab, seed, steps) > 0:
+            hint, lab = lab, None
             if len(w) <= cpsat_max_windows and time_budget > 0:
-                found, proved = cpsat_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=lab)
                 method = "CP-SAT"
-            if found is None and K >= n:
-                found, method = np.arange(n, dtype=np.int64), "distinct labels"
-        if found is not None:
-            return WindowCode(found, K, b, lb, lbb, method, b == lbb or proved_below)
+                lab, proved = cpsat_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=hint)
+            if lab is None and K >= n:
+                lab, method = np.arange(n, dtype=np.int64), "distinct labels"
+        if lab is not None:
+            return WindowCode(lab, K, b, lb, lbb, method, b == lbb or proved_below)
         proved_below = proved
-        b += 1
+    raise AssertionError("unreachable: distinct labels are valid")
