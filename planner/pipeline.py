@@ -22,7 +22,7 @@ from .errors import InputError, UsageError
 from .graph import build_graph
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from .plan import Plan, dump_plan, plan_document
-from .verify import verify_plan
+from .verify import classify, observe
 from .window_scheme import assign_unique, assign_window
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
@@ -113,11 +113,15 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     graph = build_graph(xy)
     cam = options.camera
 
+    observations: dict = {}  # seed -> what the camera sees; shared by every scheme checked
+
     def check(ids):
         if not options.verify:
             return None
-        return verify_plan(xyz, radii, ids, layout.outline, cam, per_m2=options.poses_per_m2, seed=options.seed,
-                           tolerance_m=options.tolerance_m)
+        if options.seed not in observations:
+            observations[options.seed] = observe(xyz, radii, layout.outline, cam, per_m2=options.poses_per_m2,
+                                                 seed=options.seed, tolerance_m=options.tolerance_m)
+        return classify(observations[options.seed], ids)
 
     made = {}
     if options.scheme in ("paper", "auto"):
@@ -126,7 +130,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     if options.scheme in ("window", "auto"):
         made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
                                        time_budget=options.time_budget, per_m2=options.poses_per_m2,
-                                       tolerance_m=options.tolerance_m)
+                                       tolerance_m=options.tolerance_m, observations=observations)
     if options.scheme == "unique":
         unique = assign_unique(xy, graph)
         made["unique"] = (unique, check(unique.ids))

@@ -15,8 +15,8 @@ import numpy as np
 
 from .camera import Camera
 from .window_code import window_keys
-from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, WindowSet, canonical_windows, find_windows, \
-    sample_poses, working_area
+from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
+    find_windows, sample_poses, working_area
 
 # Pose status codes, as in ``Verification.status``.
 DECODABLE, AMBIGUOUS, COLLINEAR, TOO_FEW = 0, 1, 2, 3
@@ -94,24 +94,52 @@ def conflict_groups(ws: WindowSet, ids: np.ndarray) -> tuple[list, np.ndarray]:
     return ordered, shared
 
 
+@dataclass(frozen=True)
+class Observation:
+    """What the camera sees over one pose sample: geometry only, independent of the IDs.
+
+    Computed once per sample and reused for every ID assignment checked on it.
+    """
+
+    position: np.ndarray
+    windows_per_pose: "PoseWindows"
+    windows: WindowSet
+    per_m2: float
+    seed: int
+    tolerance_m: float
+
+
+def observe(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, *, per_m2: float = POSES_PER_M2,
+            seed: int = 0, tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Observation:
+    """Sample poses over the working area and find each pose's window."""
+    poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
+    pw = find_windows(poses, xyz, radii, camera)
+    ws = canonical_windows(pw.triples[pw.covered], xyz, tolerance_m)
+    return Observation(poses.position, pw, ws, per_m2, seed, tolerance_m)
+
+
+def classify(obs: Observation, ids: np.ndarray) -> Verification:
+    """Each pose of an observation as decodable, ambiguous, collinear or too few LEDs seen, under ``ids``."""
+    pw = obs.windows_per_pose
+    status = np.full(len(pw.triples), TOO_FEW, dtype=np.int64)
+    status[pw.collinear] = COLLINEAR
+    covered = pw.covered
+    status[covered] = DECODABLE
+    groups, shared = conflict_groups(obs.windows, np.asarray(ids))
+    if shared.any():
+        bad = {tuple(sorted(w)) for w in obs.windows.windows[shared].tolist()}
+        idx = np.flatnonzero(covered)
+        hit = np.array([tuple(t) in bad for t in pw.triples[idx].tolist()], dtype=bool)
+        status[idx[hit]] = AMBIGUOUS
+    return Verification(obs.position, status, obs.windows, groups, obs.per_m2, obs.seed, obs.tolerance_m)
+
+
 def verify_plan(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *,
                 per_m2: float = POSES_PER_M2, seed: int = 0,
                 tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Verification:
     """Sample poses and classify each as decodable, ambiguous, collinear or too few LEDs seen."""
-    poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
-    pw = find_windows(poses, xyz, radii, camera)
-    status = np.full(len(poses), TOO_FEW, dtype=np.int64)
-    status[pw.collinear] = COLLINEAR
-    covered = pw.covered
-    status[covered] = DECODABLE
-    ws = canonical_windows(pw.triples[covered], xyz, tolerance_m)
-    groups, shared = conflict_groups(ws, np.asarray(ids))
-    if shared.any():
-        bad = {tuple(sorted(w)) for w in ws.windows[shared].tolist()}
-        idx = np.flatnonzero(covered)
-        hit = np.array([tuple(t) in bad for t in pw.triples[idx].tolist()], dtype=bool)
-        status[idx[hit]] = AMBIGUOUS
-    return Verification(poses.position, status, ws, groups, per_m2, seed, tolerance_m)
+    obs = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+    return classify(obs, ids)
 
 
 def design_windows(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, *,

@@ -18,7 +18,7 @@ from . import window_code
 from .assignment import Assignment, bits_for, tile_regions
 from .camera import Camera
 from .graph import NeighbourGraph
-from .verify import Verification, design_windows, verify_plan
+from .verify import Verification, classify, design_windows, observe
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, canonical_windows, working_area
 
 
@@ -29,7 +29,7 @@ def _polygon_area(p: np.ndarray) -> float:
 REPAIR_ROUNDS = 3
 """Passes over the check samples; each pass adds the windows they found and repairs the IDs."""
 
-CHECK_SEEDS = 3
+CHECK_SEEDS = 2
 """Independent pose samples the IDs are checked and repaired against (the last is the one reported)."""
 
 DESIGN_PER_M2 = 2000.0
@@ -49,11 +49,21 @@ def assign_unique(xy: np.ndarray, graph: NeighbourGraph) -> Assignment:
 
 def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera, *,
                   seed: int = 0, time_budget: float = 10.0, per_m2: float = POSES_PER_M2,
-                  tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> tuple[Assignment, Verification]:
+                  tolerance_m: float = CONGRUENCE_TOLERANCE_M,
+                  observations: dict | None = None) -> tuple[Assignment, Verification]:
     """The window scheme, verified: IDs under which no two sampled windows share a key.
 
     Returns the assignment and its final verification (on poses of seed ``seed``).
+    ``observations`` (seed -> :class:`Observation` at ``per_m2``) is filled and reused,
+    so a caller verifying other schemes on the same samples observes each once.
     """
+    seen = {} if observations is None else observations
+
+    def checked(s: int, labels: np.ndarray) -> Verification:
+        if s not in seen:
+            seen[s] = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=s, tolerance_m=tolerance_m)
+        return classify(seen[s], labels + 1)
+
     n = len(xyz)
     area = working_area(xyz[:, :2], outline)
     area_m2 = max(_polygon_area(area), 1e-6)
@@ -70,8 +80,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     for _ in range(REPAIR_ROUNDS):
         found = []
         for s in check_seeds:
-            check = verify_plan(xyz, radii, labels + 1, outline, camera, per_m2=per_m2, seed=s,
-                                tolerance_m=tolerance_m)
+            check = checked(s, labels)
             if check.conflicts:
                 found.append(check.windows.windows)
         if not found:
@@ -87,7 +96,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         labels = repaired
         method = f"{code.method}, repaired after verification"
     else:
-        check = verify_plan(xyz, radii, labels + 1, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+        check = checked(seed, labels)
     ids = labels.astype(np.int64) + 1
     bits = bits_for(max(k, 2))
     detail = {"windows": len(ws), "labels": int(k), "optimal": bool(code.optimal and bits == code.bits),
