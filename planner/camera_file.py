@@ -5,10 +5,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import yaml
-
 from .camera import Camera
 from .errors import InputError
+from .yaml_io import load_yaml
 
 _KNOWN = {"width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px", "hfov_deg", "receiver_height_m",
           "max_tilt_deg", "row_time_s"}
@@ -17,12 +16,7 @@ _KNOWN = {"width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px", "hfov_deg
 def read_camera(path: str | Path) -> Camera:
     """A camera from YAML: ``hfov_deg`` or intrinsics (``fx_px``...), image size, heights, tilt, row time."""
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such camera file") from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path}: not valid YAML ({exc})") from exc
+    doc = load_yaml(path, "no such camera file")
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a mapping of camera fields ({', '.join(sorted(_KNOWN))})")
     unknown = sorted(set(doc) - _KNOWN)

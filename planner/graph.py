@@ -96,7 +96,7 @@ def neighbour_edges(xy: np.ndarray) -> np.ndarray:
     pts = xy[simplices]  # (T, 3, 2)
     keep: dict[tuple[int, int], bool] = {}
     for k in range(3):
-        a, b, c = simplices[:, k], simplices[:, (k + 1) % 3], simplices[:, (k + 2) % 3]
+        b, c = simplices[:, (k + 1) % 3], simplices[:, (k + 2) % 3]
         u = pts[:, (k + 1) % 3] - pts[:, k]
         v = pts[:, (k + 2) % 3] - pts[:, k]
         cos = np.einsum("ij,ij->i", u, v) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))

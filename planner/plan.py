@@ -18,6 +18,7 @@ from . import __version__
 from .assignment import Assignment
 from .camera import Camera
 from .errors import InputError
+from .yaml_io import load_yaml
 from .graph import NeighbourGraph
 from .layout import Layout
 
@@ -129,12 +130,7 @@ _REQUIRED = ("name", "x", "y", "z", "radius", "parity", "region", "id")
 def load_plan(path: str | Path) -> dict:
     """Read and check a ``plan.yaml``; raise :class:`InputError` naming the bad field."""
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such plan file; run vlp-plan first") from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path}: not valid YAML ({exc})") from exc
+    doc = load_yaml(path, "no such plan file; run vlp-plan first")
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise InputError(f"{path}: not a {FORMAT} plan (field 'format' is {doc.get('format') if isinstance(doc, dict) else None!r})")
     lums = doc.get("luminaires")

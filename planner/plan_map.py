@@ -7,7 +7,6 @@ are shaded alternately behind them and labelled. Rendering is deterministic
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import matplotlib

@@ -9,9 +9,9 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-import yaml
 
 from .errors import InputError
+from .yaml_io import load_yaml
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, UNIT_TO_M, Layout, Luminaire
 
 _FIELDS = {"name", "x", "y", "z", "radius"}
@@ -68,12 +68,7 @@ def read_yaml(path: str | Path, *, units: str | None = None, mount_height_m: flo
     (list of [x, y]) and ``luminaires`` (list of mappings with ``x``, ``y`` and optional
     ``z``, ``radius``, ``name``)."""
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" line {mark.line + 1}" if mark else ""
-        raise InputError(f"{path}:{line} not valid YAML ({getattr(exc, 'problem', exc)})") from exc
+    doc = load_yaml(path)
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a mapping with 'luminaires' or 'outline' at the top level")
     unit = units or str(doc.get("unit", "m"))
