@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -96,27 +97,33 @@ class Camera:
 
 @dataclass(frozen=True)
 class Poses:
-    """Camera poses.
+    """Camera poses, stored as angles; rotations are built when asked for (per batch),
+    so ten million poses take 0.5 GB, not several.
 
     Attributes
     ----------
     position : numpy.ndarray, shape (P, 3)
         Camera centre in site coordinates [m].
-    rotation : numpy.ndarray, shape (P, 3, 3)
-        Camera-to-site rotation: columns are the camera's x, y, z axes in site coordinates.
-    tilt_rad : numpy.ndarray, shape (P,)
-        Angle between the optical axis and the vertical [rad].
+    tilt_rad, azimuth_rad, roll_rad : numpy.ndarray, shape (P,)
+        Tilt of the optical axis from vertical, the plan direction it tilts towards,
+        and the rotation about the optical axis [rad] (see :func:`rotation_from_angles`).
     """
 
     position: np.ndarray
-    rotation: np.ndarray
     tilt_rad: np.ndarray
+    azimuth_rad: np.ndarray
+    roll_rad: np.ndarray
 
     def __len__(self) -> int:
         return len(self.position)
 
+    @cached_property
+    def rotation(self) -> np.ndarray:
+        """Camera-to-site rotations, shape (P, 3, 3): columns are the camera's x, y, z axes."""
+        return rotation_from_angles(self.tilt_rad, self.azimuth_rad, self.roll_rad)
+
     def subset(self, index) -> "Poses":
-        return Poses(self.position[index], self.rotation[index], self.tilt_rad[index])
+        return Poses(self.position[index], self.tilt_rad[index], self.azimuth_rad[index], self.roll_rad[index])
 
 
 def rotation_from_angles(tilt_rad, azimuth_rad, roll_rad) -> np.ndarray:

@@ -18,7 +18,7 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.stats import qmc
 
-from .camera import Camera, Poses, project_discs, rotation_from_angles
+from .camera import Camera, Poses, project_discs
 
 CANDIDATES = 24
 """LEDs examined per pose: those nearest the point where the optical axis meets the ceiling."""
@@ -33,6 +33,7 @@ POSES_PER_M2 = 400.0
 """Default density of sampled poses over the working area [1/m^2]."""
 
 _BATCH = 20000
+_SOBOL_CHUNK_LOG2 = 16
 
 
 def working_area(xy: np.ndarray, outline) -> np.ndarray:
@@ -55,19 +56,21 @@ def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2,
     """
     polygon = PolygonPath(area)
     lo, hi = area.min(axis=0), area.max(axis=0)
-    box = float(np.prod(np.maximum(hi - lo, 1e-9)))
     x0, y0 = area[:, 0], area[:, 1]
     area_m2 = 0.5 * abs(np.dot(x0, np.roll(y0, 1)) - np.dot(y0, np.roll(x0, 1)))
     wanted = max(1, int(round(per_m2 * max(area_m2, 1e-6))))
-    draw = int(math.ceil(wanted * box / max(area_m2, 1e-9) * 1.05)) + 16
-    u = qmc.Sobol(d=6, scramble=True, seed=seed).random_base2(max(1, math.ceil(math.log2(draw))))
+    sobol = qmc.Sobol(d=6, scramble=True, seed=seed)
+    chunks, have = [], 0
+    while have < wanted:  # draw in power-of-two chunks (Sobol balance), keep those inside the area
+        u = sobol.random_base2(_SOBOL_CHUNK_LOG2) if sobol.num_generated == 0 else sobol.random(2**_SOBOL_CHUNK_LOG2)
+        u = u[polygon.contains_points(lo + u[:, :2] * (hi - lo))]
+        chunks.append(u[: wanted - have])
+        have += len(chunks[-1])
+    u = np.concatenate(chunks)
     xy = lo + u[:, :2] * (hi - lo)
-    keep = polygon.contains_points(xy)
-    u, xy = u[keep][:wanted], xy[keep][:wanted]
     height = camera.min_height_m + u[:, 2] * (camera.max_height_m - camera.min_height_m)
-    tilt = u[:, 3] * camera.max_tilt_rad
-    rotation = rotation_from_angles(tilt, u[:, 4] * 2 * math.pi, u[:, 5] * 2 * math.pi)
-    return Poses(np.column_stack([xy, height]), rotation, tilt)
+    return Poses(np.column_stack([xy, height]), u[:, 3] * camera.max_tilt_rad, u[:, 4] * 2 * math.pi,
+                 u[:, 5] * 2 * math.pi)
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ def test_disc_images_match_dense_rim_sampling():
     n, k = 400, 6
     tilt = rng.uniform(0, np.radians(40), n)
     poses = Poses(np.column_stack([rng.uniform(-1, 1, (n, 2)), rng.uniform(0.5, 1.5, n)]),
-                  rotation_from_angles(tilt, rng.uniform(0, 6.3, n), rng.uniform(0, 6.3, n)), tilt)
+                  tilt, rng.uniform(0, 6.3, n), rng.uniform(0, 6.3, n))
     centres = np.concatenate([rng.uniform(-3, 3, (n, k, 2)), np.full((n, k, 1), 2.5)], axis=2)
     radii = np.full((n, k), 0.1)
     out = project_discs(poses, centres, radii, cam)
@@ -52,7 +52,7 @@ def test_window_is_the_three_seen_leds_nearest_the_image_centre():
     xy = grid_xy(6, 6, 0.5, 0.5)
     xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
     cam = Camera()
-    poses = Poses(np.array([[1.1, 1.1, 1.0]]), rotation_from_angles([0.0], [0.0], [0.0]), np.zeros(1))
+    poses = Poses(np.array([[1.1, 1.1, 1.0]]), np.zeros(1), np.zeros(1), np.zeros(1))
     pw = find_windows(poses, xyz, np.full(len(xy), 0.1), cam)
     # level camera 1.5 m below the ceiling at (1.1, 1.1): nearest LEDs (1,1), (1.5,1) / (1,1.5) in some order
     centre = np.argmin(np.hypot(*(xy - [1.1, 1.1]).T))
