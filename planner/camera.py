@@ -188,3 +188,12 @@ def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: 
             lo, hi = (c02 - disc) / c22, (c02 + disc) / c22
             inside &= (np.minimum(lo, hi) >= 0) & (np.maximum(lo, hi) <= size)
     return {"u": u, "v": v, "in_front": in_front, "inside": inside, "depth": depth}
+
+
+def disc_dual_conic(position: np.ndarray, rotation: np.ndarray, centre: np.ndarray, radius_m: float,
+                    camera: Camera) -> np.ndarray:
+    """Dual conic (3 x 3) of one horizontal LED disc's exact image, as in :func:`project_discs`."""
+    rot_t = rotation.T
+    kmat = camera.intrinsics
+    h = np.column_stack([kmat @ rot_t[:, 0], kmat @ rot_t[:, 1], kmat @ rot_t @ (centre - position)])
+    return h @ np.diag([radius_m**2, radius_m**2, -1.0]) @ h.T
