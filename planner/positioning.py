@@ -36,6 +36,8 @@ def ellipse_from_dual_conic(cstar: np.ndarray) -> Ellipse:
     centre = np.linalg.solve(a2, -c[:2, 2])
     k = centre @ a2 @ centre - c[2, 2]  # x^T A x = k in centred coordinates
     evals, evecs = np.linalg.eigh(a2 / k)
+    if not np.all(evals > 0):
+        raise PlanningError("the LED's image is not an ellipse: it is not wholly in front of the camera")
     semi = 1.0 / np.sqrt(evals)  # ascending eigenvalues: major axis first
     direction = evecs[:, 0]
     return Ellipse(float(centre[0]), float(centre[1]), float(2 * semi[0]), float(2 * semi[1]),

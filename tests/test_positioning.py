@@ -74,3 +74,11 @@ def test_focal_length_calibration_recovers_a_drifting_focus():
     f = f0 + k * dist
     image_radius = f * RADIUS / dist  # level shot: distance / radius = f / image radius
     assert fit_focal_length(dist, image_radius, RADIUS) == pytest.approx((f0, k), rel=1e-9)
+
+
+def test_a_disc_straddling_the_camera_plane_has_no_ellipse():
+    cam = Camera()
+    sideways = rotation_from_angles(np.radians(90.0), 0.0, 0.0)[0]  # optical axis horizontal, towards +x
+    # the disc spans x = -0.05 .. 0.15 m: partly behind the camera, so its image is a hyperbola
+    with pytest.raises(PlanningError, match="not an ellipse"):
+        ellipse_from_dual_conic(disc_dual_conic(np.array([0.0, 0.0, 2.0]), sideways, np.array([0.05, 0, 2.5]), RADIUS, cam))
