@@ -162,8 +162,14 @@ def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: 
     ``in_front`` (every rim point in front of the camera), ``inside`` (the whole
     disc image lies inside the image), and ``depth`` (centre depth along the axis [m]).
     """
-    rot_t = np.swapaxes(poses.rotation, 1, 2)  # site -> camera
-    c_cam = np.einsum("pij,pkj->pki", rot_t, centres - poses.position[:, None, :])
+    return project_discs_at(poses.position, poses.rotation, centres, radii, camera)
+
+
+def project_discs_at(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                     camera: Camera) -> dict:
+    """:func:`project_discs` for camera centres (P, 3) [m] and camera-to-site rotations (P, 3, 3)."""
+    rot_t = np.swapaxes(rotation, 1, 2)  # site -> camera
+    c_cam = np.einsum("pij,pkj->pki", rot_t, centres - position[:, None, :])
     kmat = camera.intrinsics
     # Columns of H = K [a b c]: a, b the site x and y axes in camera coordinates (per pose).
     h1 = (rot_t[:, :, 0] @ kmat.T)[:, None, :]
@@ -190,10 +196,16 @@ def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: 
     return {"u": u, "v": v, "in_front": in_front, "inside": inside, "depth": depth}
 
 
-def disc_dual_conic(position: np.ndarray, rotation: np.ndarray, centre: np.ndarray, radius_m: float,
+def disc_dual_conic(position: np.ndarray, rotation: np.ndarray, centre: np.ndarray, radius_m,
                     camera: Camera) -> np.ndarray:
-    """Dual conic (3 x 3) of one horizontal LED disc's exact image, as in :func:`project_discs`."""
-    rot_t = rotation.T
+    """Dual conics of horizontal LED discs' exact images, as in :func:`project_discs`.
+
+    One camera (centre [m], camera-to-site rotation 3 x 3); ``centre`` (3,) or (N, 3) [m]
+    and ``radius_m`` scalar or (N,) [m]; returns (3, 3) or (N, 3, 3).
+    """
+    rot_t = np.asarray(rotation, float).T
     kmat = camera.intrinsics
-    h = np.column_stack([kmat @ rot_t[:, 0], kmat @ rot_t[:, 1], kmat @ rot_t @ (centre - position)])
-    return h @ np.diag([radius_m**2, radius_m**2, -1.0]) @ h.T
+    h1, h2 = kmat @ rot_t[:, 0], kmat @ rot_t[:, 1]
+    h3 = (np.asarray(centre, float) - position) @ (kmat @ rot_t).T
+    r2 = np.asarray(radius_m, float)[..., None, None] ** 2
+    return r2 * (np.outer(h1, h1) + np.outer(h2, h2)) - h3[..., :, None] * h3[..., None, :]

@@ -19,6 +19,8 @@ from . import __version__
 from .camera import Camera
 from .errors import PlannerError, UsageError
 from .layout import UNIT_TO_M
+from .accuracy import ERROR_POSES_PER_M2
+from .locate import METHODS
 from .pipeline import SCHEMES, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
@@ -69,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
         "(DXF) or a luminaire list (YAML/CSV), give every luminaire a short ID (the paper's region code, "
         "or shorter IDs that keep every camera window unique), verify the plan under a tilted camera, and "
-        "write plan.yaml, an annotated DXF, map.png and coverage.png into OUTDIR.",
+        "write plan.yaml, an annotated DXF, map.png, coverage.png and error.png into OUTDIR.",
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
         "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
     )
@@ -101,6 +103,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
                    "detected (default 1: no check bits)")
     _add_verify_flags(p)
+    g = p.add_argument_group("accuracy")
+    g.add_argument("--locate-method", choices=sorted(METHODS), default="perspective",
+                   help="positioning method the error map simulates (default perspective; paper: the paper's "
+                   "weak-perspective method)")
+    g.add_argument("--error-poses-per-m2", type=_non_negative_float, default=ERROR_POSES_PER_M2, metavar="N",
+                   help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
+                   "0 skips the map)")
     g = p.add_argument_group("output")
     g.add_argument("--no-map", action="store_true", help="do not draw map.png and coverage.png")
     g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
@@ -148,7 +157,8 @@ def main(argv: list[str] | None = None) -> dict:
     layout = read_layout(args.layout, args.leds, read_opts)
     _progress(f"planning {len(layout.luminaires)} luminaires")
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, _camera(args), not args.no_verify,
-                                         args.poses_per_m2, args.tolerance, args.check_distance))
+                                         args.poses_per_m2, args.tolerance, args.check_distance,
+                                         args.locate_method, args.error_poses_per_m2))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     _progress(f"writing {outdir}")
     written = write_outputs(plan, outdir, with_map=not args.no_map)
@@ -175,6 +185,7 @@ def main(argv: list[str] | None = None) -> dict:
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
+        "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
         "seconds": round(time.perf_counter() - t0, 3),
@@ -220,7 +231,15 @@ def _print_summary(s: dict) -> None:
     v = s["verification"]
     if v:
         print(f"  verify   {_verification_line(v)}")
+    a = s["accuracy"]
+    if a and a["located"]:
+        print(f"  accuracy {a['method']} method: median {_length(a['median_m'])}, 90 % {_length(a['p90_m'])}, "
+              f"max {_length(a['max_m'])} over {a['located']} simulated poses (edge noise {a['noise_px']:g} px)")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
+
+
+def _length(metres: float) -> str:
+    return f"{metres * 1e3:.2f} mm" if metres < 0.01 else f"{metres * 1e2:.1f} cm"
 
 
 def _verification_line(v: dict) -> str:

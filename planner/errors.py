@@ -23,3 +23,10 @@ class InputError(PlannerError, ValueError):
 
 class PlanningError(PlannerError):
     """The input is valid but no plan satisfies the requested constraints."""
+
+
+class PositioningError(PlannerError):
+    """The observation is valid but gives no trustworthy position (too few or collinear
+    LEDs, no pose explains the ellipses, more than one place fits)."""
+
+    exit_code = 3

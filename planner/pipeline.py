@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .accuracy import ERROR_POSES_PER_M2, site_accuracy
 from .assignment import assign_paper
 from .check_bits import check_code
 from .camera import Camera
@@ -56,6 +57,8 @@ class PlanOptions:
     poses_per_m2: float = POSES_PER_M2
     tolerance_m: float = CONGRUENCE_TOLERANCE_M
     check_distance: int = 1
+    locate_method: str = "perspective"
+    error_poses_per_m2: float = ERROR_POSES_PER_M2
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -98,7 +101,7 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
 
 
 def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
-    """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification.
+    """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification, error map.
 
     ``auto`` makes the paper's and the window scheme, verifies both, and keeps the
     one with fewer bits that has no ambiguous pose (the paper's on a tie); if
@@ -147,7 +150,11 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     assignment, verification = made[chosen]
     considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None)} for k, (a, v) in made.items()}
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
-    return Plan(layout, graph, assignment, cam, verification, considered, check)
+    accuracy = None
+    if options.verify and options.error_poses_per_m2 > 0:
+        accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
+                                 per_m2=options.error_poses_per_m2, seed=options.seed)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy)
 
 
 def default_outdir(layout_path: str | Path) -> Path:
@@ -185,11 +192,13 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True) -> l
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),
                             source_path=source if is_dxf else None, tool_version=__version__)
         if with_map:
-            from .plan_map import render_coverage, render_map
+            from .plan_map import render_coverage, render_error, render_map
 
             render_map(plan, stage / "map.png")
             if plan.verification is not None:
                 render_coverage(plan, stage / "coverage.png")
+            if plan.accuracy is not None:
+                render_error(plan, stage / "error.png")
         names = sorted(p.name for p in stage.iterdir())
         if outdir.exists():
             old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")

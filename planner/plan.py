@@ -23,6 +23,7 @@ from .graph import NeighbourGraph
 from .layout import Layout
 
 if TYPE_CHECKING:
+    from .accuracy import SiteAccuracy
     from .check_bits import CheckCode
     from .verify import Verification
 
@@ -41,6 +42,7 @@ class Plan:
     verification: "Verification | None" = None
     considered: dict | None = None
     check: "CheckCode | None" = None
+    accuracy: "SiteAccuracy | None" = None
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -109,6 +111,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
         "camera": plan.camera.to_dict(),
         "verification": (plan.verification.summary([lum.name for lum in lay.luminaires])
                          if plan.verification is not None else None),
+        "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),
         "luminaires": plan.entries(),
     }

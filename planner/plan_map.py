@@ -136,3 +136,34 @@ def render_coverage(plan: Plan, path: str | Path) -> None:
     fig.tight_layout()
     fig.savefig(path, format="png", metadata={"Software": None})
     plt.close(fig)
+
+
+def render_error(plan: Plan, path: str | Path) -> None:
+    """Write the expected-error map as PNG: median and 90th-percentile error per square, side by side.
+
+    Dark is bad (large error); squares where no sampled pose gave a position are light grey.
+    """
+    acc = plan.accuracy
+    ex, ey, med, p90 = acc.cells()
+    finite = p90[np.isfinite(p90)]
+    top = float(finite.max()) if len(finite) else 1.0
+    unit, scale = ("mm", 1e3) if top < 0.01 else ("cm", 1e2)
+    span = np.array([ex[-1] - ex[0], ey[-1] - ey[0]])
+    inch_per_m = min(7.0 / span[0], 8.0 / span[1], 1.0)
+    fig, axes = plt.subplots(1, 2, figsize=(max(9.0, 2 * span[0] * inch_per_m + 3.0), max(4.5, span[1] * inch_per_m + 1.6)),
+                             dpi=110, sharey=True, layout="constrained")
+    cmap = plt.get_cmap("gray_r").with_extremes(bad="0.85")
+    xy = plan.layout.xy
+    for ax, grid, title in ((axes[0], med, "median"), (axes[1], p90, "90th percentile")):
+        mesh = ax.pcolormesh(ex, ey, grid.T * scale, cmap=cmap, vmin=0, vmax=top * scale, shading="flat")
+        ax.scatter(*xy.T, s=8, facecolors="none", edgecolors="0.5", linewidths=0.5)
+        ax.set_title(f"{title} error per {acc.summary()['cell_m']:g} m square", fontsize=9)
+        ax.set_xlabel("x [m]")
+        ax.set_aspect("equal")
+    axes[0].set_ylabel("y [m]")
+    fig.colorbar(mesh, ax=list(axes), label=f"position error [{unit}]", fraction=0.03)
+    s = acc.summary()
+    fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method, edge noise {s['noise_px']:g} px, "
+                 f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
+    fig.savefig(path, format="png", metadata={"Software": None})
+    plt.close(fig)

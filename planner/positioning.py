@@ -9,39 +9,15 @@ quantities in pixels.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from .errors import PlanningError
-
-
-@dataclass(frozen=True)
-class Ellipse:
-    """An LED's image: centre [px], full axis lengths [px], major-axis angle from the image x axis [rad]."""
-
-    cx: float
-    cy: float
-    major: float
-    minor: float
-    angle_rad: float
-
-
-def ellipse_from_dual_conic(cstar: np.ndarray) -> Ellipse:
-    """Centre, axes and angle of the ellipse whose dual conic is ``cstar`` (3 x 3)."""
-    c = np.linalg.inv(cstar)
-    c = c / -c[2, 2] if c[2, 2] != 0 else c
-    a2 = c[:2, :2]
-    centre = np.linalg.solve(a2, -c[:2, 2])
-    k = centre @ a2 @ centre - c[2, 2]  # x^T A x = k in centred coordinates
-    evals, evecs = np.linalg.eigh(a2 / k)
-    if not np.all(evals > 0):
-        raise PlanningError("the LED's image is not an ellipse: it is not wholly in front of the camera")
-    semi = 1.0 / np.sqrt(evals)  # ascending eigenvalues: major axis first
-    direction = evecs[:, 0]
-    return Ellipse(float(centre[0]), float(centre[1]), float(2 * semi[0]), float(2 * semi[1]),
-                   float(np.arctan2(direction[1], direction[0]) % np.pi))
+from .camera import Camera
+from .ellipse import Ellipse
+from .errors import PositioningError
+from .fix import Fix, check_geometry, ellipse_residuals, orientation_at, rms
 
 
 def distance_weak_perspective(ellipse: Ellipse, radius_m: float, focal_px: float, cx_px: float, cy_px: float) -> float:
@@ -70,7 +46,7 @@ def trilaterate_same_height(leds_m: np.ndarray, d_m: np.ndarray) -> np.ndarray:
     d1, d2, d3 = d_m[:3]
     a = np.array([[x2 - x1, y2 - y1], [x3 - x1, y3 - y1]])
     if abs(np.linalg.det(a)) < 1e-9:
-        raise PlanningError("the three LEDs are collinear: no position can be trilaterated from them")
+        raise PositioningError("the three LEDs are collinear: no position can be trilaterated from them")
     b = 0.5 * np.array([d1**2 - d2**2 + x2**2 - x1**2 + y2**2 - y1**2,
                         d1**2 - d3**2 + x3**2 - x1**2 + y3**2 - y1**2])
     x, y = np.linalg.solve(a, b)  # Eq. (13)
@@ -86,7 +62,7 @@ def trilaterate_least_squares(leds_m: np.ndarray, d_m: np.ndarray, start: np.nda
     """
     leds_m, d_m = np.asarray(leds_m, float), np.asarray(d_m, float)
     if len(leds_m) < 3:
-        raise PlanningError(f"{len(leds_m)} LEDs: a position needs at least three")
+        raise PositioningError(f"{len(leds_m)} LEDs: a position needs at least three")
     if start is None:
         start = leds_m.mean(axis=0) - np.array([0.0, 0.0, float(np.mean(d_m))])
     fit = least_squares(lambda p: np.linalg.norm(leds_m - p, axis=1) - d_m, start)
@@ -104,3 +80,39 @@ def fit_focal_length(distance_below_m: np.ndarray, image_radius_px: np.ndarray, 
     f = dist * np.asarray(image_radius_px, float) / radius_m
     k, f0 = np.polyfit(dist, f, 1)
     return float(f0), float(k)
+
+
+def _nearest_triple(xyz: np.ndarray, off_px: np.ndarray) -> list[int]:
+    """The three LEDs nearest the image centre (section 3), skipping triples on one line."""
+    order = np.argsort(off_px, kind="stable")
+    for t in sorted(combinations(range(len(order)), 3), key=lambda t: (sum(t), t)):
+        pick = order[list(t)]
+        a, b, c = xyz[pick, :2]
+        if abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])) > 1e-6:
+            return list(pick)
+    raise PositioningError("the LEDs seen lie on one line: no unique position; turn the camera to take in "
+                           "a luminaire off that line")
+
+
+def locate_paper(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], camera: Camera) -> Fix:
+    """The paper's method end to end: three LEDs nearest the image centre, Eq. (1)-(6), then Eq. (13)-(14).
+
+    LEDs at different heights use the least-squares form of Eq. (7). The orientation
+    is not part of the paper's method; it is fitted afterwards (Kabsch, on the ellipse
+    centres) only to report how well the position explains the image (``residual_px``).
+    """
+    xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
+    check_geometry(xyz)
+    centres = np.array([e.centre for e in ellipses])
+    off = np.hypot(centres[:, 0] - camera.cx_px, centres[:, 1] - camera.cy_px)
+    pick = _nearest_triple(xyz, off)
+    focal = float(np.sqrt(camera.fx_px * camera.fy_px))
+    d = np.array([distance_weak_perspective(ellipses[k], radii[k], focal, camera.cx_px, camera.cy_px) for k in pick])
+    if np.ptp(xyz[pick, 2]) < 1e-9:
+        position = trilaterate_same_height(xyz[pick], d)
+    else:
+        position = trilaterate_least_squares(xyz[pick], d)[0]
+    rotation = orientation_at(position, xyz, centres, camera)
+    shapes = np.array([e.shape for e in ellipses])
+    residual = rms(ellipse_residuals(position, rotation, xyz, radii, centres, shapes, camera))
+    return Fix(position, rotation, residual, "paper", np.array(pick))

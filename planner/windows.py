@@ -47,6 +47,12 @@ def working_area(xy: np.ndarray, outline) -> np.ndarray:
         return np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]])
 
 
+def area_m2(polygon: np.ndarray) -> float:
+    """Area of a simple polygon (N x 2) [m] [m2] (shoelace formula)."""
+    x, y = polygon[:, 0], polygon[:, 1]
+    return float(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+
+
 def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2, seed: int = 0) -> Poses:
     """Quasi-random poses over ``area`` (polygon [m]): position, height, tilt, azimuth, roll.
 
@@ -56,9 +62,7 @@ def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2,
     """
     polygon = PolygonPath(area)
     lo, hi = area.min(axis=0), area.max(axis=0)
-    x0, y0 = area[:, 0], area[:, 1]
-    area_m2 = 0.5 * abs(np.dot(x0, np.roll(y0, 1)) - np.dot(y0, np.roll(x0, 1)))
-    wanted = max(1, int(round(per_m2 * max(area_m2, 1e-6))))
+    wanted = max(1, int(round(per_m2 * max(area_m2(area), 1e-6))))
     sobol = qmc.Sobol(d=6, scramble=True, seed=seed)
     chunks, have = [], 0
     while have < wanted:  # draw in power-of-two chunks (Sobol balance), keep those inside the area

@@ -8,12 +8,14 @@ import yaml
 
 from .errors import InputError
 
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml: 20x faster on large plans
+
 
 def load_yaml(path: str | Path, missing: str = "no such file"):
     """Parse ``path``; a missing file or bad YAML raises :class:`InputError` naming the file and line."""
     path = Path(path)
     try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
+        return yaml.load(path.read_text(encoding="utf-8"), Loader=_LOADER)
     except FileNotFoundError:
         raise InputError(f"{path}: {missing}") from None
     except UnicodeDecodeError:

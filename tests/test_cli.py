@@ -43,7 +43,7 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
     for run in ("a", "b"):
         main([str(LAYOUTS / "dialux-office.dxf"), "-o", str(tmp_path / run), "--json"])
     names = sorted(p.name for p in (tmp_path / "a").iterdir())
-    assert names == ["coverage.png", "dialux-office-vlp.dxf", "map.png", "plan.yaml"]
+    assert names == ["coverage.png", "dialux-office-vlp.dxf", "error.png", "map.png", "plan.yaml"]
     for name in names:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
 

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from planner.camera import Camera, disc_dual_conic, rotation_from_angles
-from planner.errors import PlanningError
-from planner.positioning import (distance_weak_perspective, ellipse_from_dual_conic, fit_focal_length,
-                                 trilaterate_least_squares, trilaterate_same_height)
+from planner.errors import PositioningError
+from planner.ellipse import ellipse_from_dual_conic
+from planner.positioning import (distance_weak_perspective, fit_focal_length, trilaterate_least_squares,
+                                 trilaterate_same_height)
 
 # The paper's rig (Table 2), in metres; LED radius 0.1 m assumed (the paper does not say)
 RIG = np.array([[0, 0.3, 2.5], [0, -0.3, 2.5], [0.5, 0, 2.5], [-0.5, 0, 2.5]])
@@ -62,9 +63,9 @@ def test_least_squares_agrees_and_takes_more_leds_and_heights():
 
 def test_collinear_and_too_few_leds_are_refused():
     line = np.array([[0, 0, 2.5], [0.5, 0, 2.5], [1.0, 0, 2.5]])
-    with pytest.raises(PlanningError, match="collinear"):
+    with pytest.raises(PositioningError, match="collinear"):
         trilaterate_same_height(line, np.array([2.0, 2.0, 2.0]))
-    with pytest.raises(PlanningError, match="at least three"):
+    with pytest.raises(PositioningError, match="at least three"):
         trilaterate_least_squares(line[:2], np.array([2.0, 2.0]))
 
 
@@ -80,5 +81,5 @@ def test_a_disc_straddling_the_camera_plane_has_no_ellipse():
     cam = Camera()
     sideways = rotation_from_angles(np.radians(90.0), 0.0, 0.0)[0]  # optical axis horizontal, towards +x
     # the disc spans x = -0.05 .. 0.15 m: partly behind the camera, so its image is a hyperbola
-    with pytest.raises(PlanningError, match="not an ellipse"):
+    with pytest.raises(PositioningError, match="not an ellipse"):
         ellipse_from_dual_conic(disc_dual_conic(np.array([0.0, 0.0, 2.0]), sideways, np.array([0.05, 0, 2.5]), RADIUS, cam))

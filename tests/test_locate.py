@@ -1,0 +1,137 @@
+"""vlp-locate: identifying luminaires from a plan whose IDs repeat, then positioning; its errors."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner.camera import Camera, rotation_from_angles
+from planner.cli import main as plan_main
+from planner.ellipse import Ellipse
+from planner.errors import PositioningError
+from planner.locate import Site, Snapshot, identify, locate
+from planner.locate_cli import console_main
+from planner.observation import observe
+from planner.plan import load_plan
+from planner.windows import sample_poses, working_area
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def plan_path(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plan") / "g256"
+    plan_main([str(ROOT / "layouts" / "grid-256.yaml"), "-o", str(out), "--no-map", "--json",
+               "--error-poses-per-m2", "0"])
+    return out / "plan.yaml"
+
+
+@pytest.fixture(scope="module")
+def site(plan_path):
+    return Site.from_plan(load_plan(plan_path))
+
+
+def snapshot_at(site, position, rotation, rng=None):
+    seen = observe(position, rotation, site.xyz, site.radii, Camera(), rng)
+    return seen, Snapshot(Camera(), [int(site.ids[k]) for k in seen.index], seen.ellipses)
+
+
+def test_ids_repeat_and_every_covered_pose_is_identified_and_located(site, plan_path):
+    assert len(set(site.ids)) < len(site.ids) / 4  # a short code: each ID names many luminaires
+    poses = sample_poses(working_area(site.xyz[:, :2], load_plan(plan_path)["outline"]), Camera(), per_m2=1, seed=4)
+    rng = np.random.default_rng(0)
+    located = 0
+    for k in range(len(poses)):
+        seen, snap = snapshot_at(site, poses.position[k], poses.rotation[k], rng)
+        if len(seen.index) < 3:
+            continue
+        try:
+            found = identify(site, snap)
+        except PositioningError as exc:
+            assert "one line" in str(exc)  # the only refusal a covered pose may get
+            continue
+        assert list(found.luminaires) == list(seen.index)
+        assert np.linalg.norm(found.fix.position - poses.position[k]) < 2e-3
+        located += 1
+    assert located >= 30
+
+
+def test_paper_method_uses_the_three_leds_nearest_the_centre(site):
+    position, rotation = np.array([3.1, 2.2, 1.0]), rotation_from_angles(np.radians(30), 1.0, 0.3)[0]
+    seen, snap = snapshot_at(site, position, rotation)
+    found = locate(site, snap, "paper")
+    assert list(found.fix.used) == [0, 1, 2] and found.fix.method == "paper"
+    assert 0.001 < np.linalg.norm(found.fix.position - position) < 0.5
+
+
+def test_an_image_that_fits_two_places_is_refused():
+    block = np.array([[x, y, 2.5] for x in (0.0, 0.5, 1.0) for y in (0.0, 0.5, 1.0)])
+    xyz = np.vstack([block, block + [10.0, 0.0, 0.0]])
+    twin = Site([f"L{k}" for k in range(18)], xyz, np.full(18, 0.1), np.tile(np.arange(1, 10), 2))
+    _, snap = snapshot_at(twin, np.array([0.5, 0.5, 1.2]), rotation_from_angles(0.2, 0.5, 0.1)[0])
+    with pytest.raises(PositioningError, match="fits two places"):
+        identify(twin, snap)
+
+
+def test_ellipses_no_pose_explains_are_refused(site):
+    _, snap = snapshot_at(site, np.array([3.1, 2.2, 1.0]), rotation_from_angles(0.3, 2.0, 0.0)[0])
+    e = snap.ellipses[1]
+    bent = snap.ellipses[:1] + [Ellipse(e.cx, e.cy, 1.6 * e.major, 1.6 * e.minor, e.angle_rad)] + snap.ellipses[2:]
+    with pytest.raises(PositioningError, match="no place on the site explains"):
+        locate(site, Snapshot(snap.camera, snap.ids, bent))
+
+
+def _run(args, capsys):
+    code = console_main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_vlp_locate_round_trip_with_both_methods(plan_path, tmp_path, capsys):
+    code, out, _ = _run([plan_path, "--simulate", "3.1,2.2,1.0,30,60,20", "--seed", "2"], capsys)
+    assert code == 0
+    obs = tmp_path / "obs.json"
+    obs.write_text(out)
+    code, out, _ = _run([plan_path, obs], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["method"] == "perspective" and result["residual_px"] < 1.0
+    assert np.allclose(result["position_m"], [3.1, 2.2, 1.0], atol=2e-3)
+    assert result["orientation_deg"]["tilt"] == pytest.approx(30, abs=0.1)
+    assert len(result["luminaires"]) == len(json.loads(obs.read_text())["leds"])
+    code, out, _ = _run([plan_path, obs, "--method", "paper"], capsys)
+    paper = json.loads(out)
+    assert code == 0 and paper["method"] == "paper" and len(paper["luminaires"]) == 3
+
+
+def _observation(leds):
+    return {"camera": {"fx": 4250.0, "fy": 4250.0, "cx": 2000.0, "cy": 1500.0, "width": 4000, "height": 3000},
+            "leds": leds}
+
+
+def _led(i, cx=2000.0):
+    return {"id": i, "ellipse": {"cx": cx, "cy": 1500.0, "major": 400.0, "minor": 380.0, "angle_deg": 10.0}}
+
+
+@pytest.mark.parametrize("content, code, message", [
+    (None, 1, "no such observation file"),
+    ("{\"camera\": ", 1, "line 1: not valid JSON"),
+    (_observation([{"id": 1}]), 1, "leds[0] lacks field 'ellipse'"),
+    (_observation([_led(1), _led(2, 2500.0), _led(999, 1500.0)]), 1, "ID 999 is not in the plan"),
+    (_observation([_led(1), _led(2, 2500.0)]), 3, "2 LEDs in the image: a position needs at least three"),
+    (_observation([_led(1), _led(2, 2500.0), _led(3, 3000.0)]), 3, "lie on one line"),
+    (_observation([_led(1, 4200.0)]), 1, "lies outside the 4000 x 3000 px image"),
+])
+def test_bad_observations_give_one_line_and_an_exit_code(plan_path, tmp_path, capsys, content, code, message):
+    obs = tmp_path / "obs.json"
+    if content is not None:
+        obs.write_text(content if isinstance(content, str) else json.dumps(content))
+    got, out, err = _run([plan_path, obs], capsys)
+    assert got == code and out == "" and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_locate_needs_an_observation_or_a_pose(plan_path, capsys):
+    code, _, err = _run([plan_path], capsys)
+    assert code == 2 and "OBSERVATION.json" in err
+    code, _, err = _run([plan_path, "--simulate", "1,2,3"], capsys)
+    assert code == 2 and "six numbers" in err
