@@ -70,13 +70,14 @@ def simulate(doc: dict, pose: str, noise_px: float, seed: int) -> dict:
     return snapshot_document(Snapshot(camera, [int(site.ids[k]) for k in seen.index], seen.ellipses))
 
 
-def result_document(site: Site, snap: Snapshot, found) -> dict:
+def result_document(site: Site, snap: Snapshot, found, max_residual_px: float = MAX_RESIDUAL_PX) -> dict:
     fix = found.fix
     tilt, az, roll = (math.degrees(a) for a in angles_of(fix.rotation))
     return {
         "position_m": [round(float(v), 4) for v in fix.position],
         "method": fix.method,
         "residual_px": round(fix.residual_px, 3),
+        "explains_image": bool(fix.residual_px <= max_residual_px),
         "luminaires": [site.names[found.luminaires[k]] for k in fix.used],
         "identified": [site.names[k] for k in found.luminaires],
         "orientation_deg": {"tilt": round(tilt, 2), "azimuth": round(az, 2), "roll": round(roll, 2)},
@@ -93,7 +94,12 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError("give an OBSERVATION.json to locate, or --simulate a pose (see vlp-locate --help)")
     site, snap = Site.from_plan(doc), read_snapshot(args.observation)
     found = locate(site, snap, args.method, args.max_residual_px)
-    print(json.dumps(result_document(site, snap, found), indent=2))
+    result = result_document(site, snap, found, args.max_residual_px)
+    print(json.dumps(result, indent=2))
+    if not result["explains_image"]:
+        print(f"vlp-locate: warning: the {args.method} method's position leaves {result['residual_px']:g} px RMS "
+              f"(limit {args.max_residual_px:g} px): no orientation at this position explains the image; "
+              "expect an error of centimetres or more (the perspective method fits it exactly)", file=sys.stderr)
     return 0
 
 

@@ -99,9 +99,11 @@ def test_vlp_locate_round_trip_with_both_methods(plan_path, tmp_path, capsys):
     assert np.allclose(result["position_m"], [3.1, 2.2, 1.0], atol=2e-3)
     assert result["orientation_deg"]["tilt"] == pytest.approx(30, abs=0.1)
     assert len(result["luminaires"]) == len(json.loads(obs.read_text())["leds"])
-    code, out, _ = _run([plan_path, obs, "--method", "paper"], capsys)
+    assert result["explains_image"] is True
+    code, out, err = _run([plan_path, obs, "--method", "paper"], capsys)
     paper = json.loads(out)
     assert code == 0 and paper["method"] == "paper" and len(paper["luminaires"]) == 3
+    assert paper["explains_image"] is False and "warning" in err  # weak perspective under a 30 deg tilt
 
 
 def _observation(leds):
