@@ -18,10 +18,13 @@ from pathlib import Path
 from . import __version__
 from .camera import Camera
 from .errors import PlannerError, UsageError
-from .layout import UNIT_TO_M
 from .accuracy import ERROR_POSES_PER_M2
+from .frame import LINE_CODES
+from .layout import UNIT_TO_M
 from .locate import METHODS
-from .pipeline import SCHEMES, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
+from .modulation import DRIVER_MAX_HZ
+from .pipeline import (SCHEMES, FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
+                       write_outputs)
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 
@@ -71,7 +74,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
         "(DXF) or a luminaire list (YAML/CSV), give every luminaire a short ID (the paper's region code, "
         "or shorter IDs that keep every camera window unique), verify the plan under a tilted camera, and "
-        "write plan.yaml, an annotated DXF, map.png, coverage.png and error.png into OUTDIR.",
+        "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png and each luminaire's driver "
+        "configuration (firmware/) into OUTDIR.",
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
         "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
     )
@@ -103,6 +107,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
                    "detected (default 1: no check bits)")
     _add_verify_flags(p)
+    g = p.add_argument_group("modulation")
+    g.add_argument("--line-code", choices=sorted(LINE_CODES), default="manchester",
+                   help="line code of the frames: manchester (2 chips per bit, runs <= 3) or 4b6b (IEEE 802.15.7, "
+                   "1.5 chips per bit, runs <= 5); default manchester")
+    g.add_argument("--driver-max-hz", type=_positive_float, default=DRIVER_MAX_HZ, metavar="HZ",
+                   help=f"fastest chip rate the luminaire drivers switch (default {DRIVER_MAX_HZ:g})")
     g = p.add_argument_group("accuracy")
     g.add_argument("--locate-method", choices=sorted(METHODS), default="perspective",
                    help="positioning method the error map simulates (default perspective; paper: the paper's "
@@ -110,6 +120,14 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--error-poses-per-m2", type=_non_negative_float, default=ERROR_POSES_PER_M2, metavar="N",
                    help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
                    "0 skips the map)")
+    g = p.add_argument_group("firmware")
+    g.add_argument("--templates", metavar="DIR",
+                   help="render every *.j2 template in DIR per luminaire instead of the bundled ones (docs/firmware.md)")
+    g.add_argument("--mcu-clock-hz", type=_positive_float, default=16e6, metavar="HZ",
+                   help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6)")
+    g.add_argument("--image-version", type=_positive_int, default=1, metavar="N",
+                   help="version written into every configuration image; drivers refuse older ones (default 1)")
+    g.add_argument("--no-firmware", action="store_true", help="do not write OUTDIR/firmware/")
     g = p.add_argument_group("output")
     g.add_argument("--no-map", action="store_true", help="do not draw map.png and coverage.png")
     g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
@@ -151,6 +169,9 @@ def _progress(message: str) -> None:
 def main(argv: list[str] | None = None) -> dict:
     """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
     args = build_parser().parse_args(argv)
+    if args.templates and not any(Path(args.templates).glob("*.j2")):
+        raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
+                         if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
     t0 = time.perf_counter()
     read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius)
     _progress(f"reading {args.layout}")
@@ -158,10 +179,13 @@ def main(argv: list[str] | None = None) -> dict:
     _progress(f"planning {len(layout.luminaires)} luminaires")
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, _camera(args), not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,
-                                         args.locate_method, args.error_poses_per_m2))
+                                         args.locate_method, args.error_poses_per_m2, args.line_code,
+                                         args.driver_max_hz))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     _progress(f"writing {outdir}")
-    written = write_outputs(plan, outdir, with_map=not args.no_map)
+    firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
+                                                             args.mcu_clock_hz, args.image_version)
+    written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware)
     a, g = plan.assignment, plan.graph
     summary = {
         "layout": str(args.layout),
@@ -185,6 +209,7 @@ def main(argv: list[str] | None = None) -> dict:
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
+        "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
@@ -231,6 +256,11 @@ def _print_summary(s: dict) -> None:
     v = s["verification"]
     if v:
         print(f"  verify   {_verification_line(v)}")
+    m = s["modulation"]
+    if m:
+        print(f"  frame    {m['line_code']}, {m['frame_chips']} chips at {m['chip_rate_hz'] / 1e3:g} kHz "
+              f"({m['frame_period_s'] * 1e3:.2f} ms); {m['frames_in_smallest_image']:.1f} frames in the smallest LED "
+              f"image ({m['smallest_image_rows']:.0f} rows)")
     a = s["accuracy"]
     if a and a["located"]:
         print(f"  accuracy {a['method']} method: median {_length(a['median_m'])}, 90 % {_length(a['p90_m'])}, "

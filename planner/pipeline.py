@@ -17,12 +17,14 @@ import numpy as np
 
 from .accuracy import ERROR_POSES_PER_M2, site_accuracy
 from .assignment import assign_paper
+from .frame import line_code
+from .modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
 from .check_bits import check_code
 from .camera import Camera
 from .errors import InputError, UsageError
 from .graph import build_graph
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
-from .plan import Plan, dump_plan, plan_document
+from .plan import Plan, dump_plan, plan_document, plan_hash
 from .verify import classify, observe
 from .window_scheme import assign_unique, assign_window
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
@@ -59,6 +61,8 @@ class PlanOptions:
     check_distance: int = 1
     locate_method: str = "perspective"
     error_poses_per_m2: float = ERROR_POSES_PER_M2
+    line_code: str = "manchester"
+    driver_max_hz: float = DRIVER_MAX_HZ
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -101,7 +105,7 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
 
 
 def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
-    """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification, error map.
+    """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification, frames, error map.
 
     ``auto`` makes the paper's and the window scheme, verifies both, and keeps the
     one with fewer bits that has no ambiguous pose (the paper's on a tie); if
@@ -150,11 +154,16 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     assignment, verification = made[chosen]
     considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None)} for k, (a, v) in made.items()}
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
+    code = line_code(options.line_code)
+    index = assignment.ids - 1
+    words = check.codewords[index] if check.distance > 1 else index
+    rows = smallest_window_image_rows(xyz, radii, layout.outline, cam, seed=options.seed)
+    modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz)
     accuracy = None
     if options.verify and options.error_poses_per_m2 > 0:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
                                  per_m2=options.error_poses_per_m2, seed=options.seed)
-    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation)
 
 
 def default_outdir(layout_path: str | Path) -> Path:
@@ -167,8 +176,18 @@ def _sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True) -> list[Path]:
-    """Write ``plan.yaml``, the annotated DXF and the map into ``outdir``, atomically.
+@dataclass(frozen=True)
+class FirmwareOptions:
+    """How to write the drivers' configuration files (``docs/firmware.md``)."""
+
+    template_dir: Path | None = None
+    mcu_clock_hz: float = 16e6
+    image_version: int = 1
+
+
+def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
+                  firmware: FirmwareOptions | None = FirmwareOptions()) -> list[Path]:
+    """Write ``plan.yaml``, the annotated DXF, the maps and the firmware files into ``outdir``, atomically.
 
     Everything is written into a temporary directory beside ``outdir`` and moved
     into place at the end: on any error, no partial output is left. An existing
@@ -182,8 +201,14 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True) -> l
     stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
     try:
         stage.chmod(0o755)  # mkdtemp makes it private; outputs are for the whole crew
-        text = dump_plan(plan_document(plan, _sha256(source) if source.is_file() else ""))
+        document = plan_document(plan, _sha256(source) if source.is_file() else "")
+        text = dump_plan(document)
         (stage / "plan.yaml").write_text(text, encoding="utf-8")
+        if firmware is not None and plan.modulation is not None:
+            from .firmware import write_firmware
+
+            write_firmware(document, plan_hash(text), stage, template_dir=firmware.template_dir,
+                           mcu_clock_hz=firmware.mcu_clock_hz, image_version=firmware.image_version)
         from .dxf_annotate import write_annotated_dxf
 
         from . import __version__

@@ -24,6 +24,7 @@ from .layout import Layout
 
 if TYPE_CHECKING:
     from .accuracy import SiteAccuracy
+    from .modulation import Modulation
     from .check_bits import CheckCode
     from .verify import Verification
 
@@ -43,6 +44,7 @@ class Plan:
     considered: dict | None = None
     check: "CheckCode | None" = None
     accuracy: "SiteAccuracy | None" = None
+    modulation: "Modulation | None" = None
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -60,6 +62,8 @@ class Plan:
                 "id": int(a.ids[k]),
                 **({"codeword": int(self.check.codewords[a.ids[k] - 1])}
                    if self.check is not None and self.check.distance > 1 else {}),
+                **({"frame": {"chips": self.modulation.frames[k], "chip_rate_hz": self.modulation.timing.chip_rate_hz,
+                              "line_code": self.modulation.code.name}} if self.modulation is not None else {}),
                 "source": dict(lum.source),
             })
         return out
@@ -111,6 +115,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
         "camera": plan.camera.to_dict(),
         "verification": (plan.verification.summary([lum.name for lum in lay.luminaires])
                          if plan.verification is not None else None),
+        "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),
         "luminaires": plan.entries(),

@@ -43,8 +43,10 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
     for run in ("a", "b"):
         main([str(LAYOUTS / "dialux-office.dxf"), "-o", str(tmp_path / run), "--json"])
     names = sorted(p.name for p in (tmp_path / "a").iterdir())
-    assert names == ["coverage.png", "dialux-office-vlp.dxf", "error.png", "map.png", "plan.yaml"]
-    for name in names:
+    assert names == ["coverage.png", "dialux-office-vlp.dxf", "error.png", "firmware", "map.png", "plan.yaml"]
+    files = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
+    assert len(files) == 5 + 3 * 48  # a header, a JSON and an image per luminaire
+    for name in files:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
 
 
@@ -151,7 +153,7 @@ def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
         result = subprocess.run([sys.executable, "-m", "planner.cli", str(LAYOUTS / "grid-32.yaml"), "-o", str(out)],
                                 cwd=ROOT, env=env, capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
-        digests.append({p.name: p.read_bytes() for p in out.iterdir()})
+        digests.append({p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()})
     assert digests[0] == digests[1] == digests[2]
 
 

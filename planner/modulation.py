@@ -1,0 +1,147 @@
+"""Modulation tables: every luminaire's frame and the one chip rate the physics allows.
+
+The chip rate must satisfy four limits at once (docs/modulation.md):
+
+- flicker: the slowest on/off cycle of a frame, ``2 max_run`` chips, repeats at least
+  at ``flicker_hz`` (200 Hz by default), so ``rate >= 2 max_run flicker_hz``;
+- frame fit: the stripes of one LED image span ``rows x row_time`` seconds of the
+  rolling shutter; at the farthest working distance (the smallest image of a window
+  LED over sampled poses) ``frames_in_image`` whole frames must fit, so
+  ``rate >= frames_in_image frame_chips / (rows row_time)``; two are asked for (a
+  frame starting anywhere is then read whole), one is accepted with a note;
+- resolution: a chip must span at least ``ROWS_PER_CHIP`` rows to be read,
+  ``rate <= 1 / (ROWS_PER_CHIP row_time)``;
+- driver: ``rate <= driver_max_hz``, what the luminaire's driver can switch.
+
+The rate chosen is the geometric mean of the bounds, to three significant digits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import Camera, Poses
+from .errors import PlanningError
+from .frame import LineCode, frame_chips
+from .windows import find_windows, sample_poses, working_area
+
+FLICKER_HZ = 200.0
+"""Lowest allowed repetition of the slowest on/off cycle [Hz] (IEEE 802.15.7's flicker guidance)."""
+
+DRIVER_MAX_HZ = 20_000.0
+"""Default fastest chip rate a luminaire driver switches cleanly [Hz] (``--driver-max-hz``)."""
+
+ROWS_PER_CHIP = 2.0
+"""Image rows a chip must span to be read."""
+
+TIMING_POSES = 20_000
+"""Poses sampled to find the smallest LED image a window holds."""
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The chip rate and the limits it was chosen between (rates in Hz, times in s)."""
+
+    chip_rate_hz: float
+    frame_chips: int
+    max_run: int
+    smallest_image_rows: float
+    row_time_s: float
+    frames_in_image: int
+    flicker_min_hz: float
+    frame_fit_min_hz: float
+    resolution_max_hz: float
+    driver_max_hz: float
+
+    def summary(self) -> dict:
+        return {"chip_rate_hz": self.chip_rate_hz, "frame_chips": self.frame_chips, "max_run": self.max_run,
+                "frame_period_s": round(self.frame_chips / self.chip_rate_hz, 9),
+                "frames_in_smallest_image": round(self.smallest_image_rows * self.row_time_s * self.chip_rate_hz
+                                                  / self.frame_chips, 3),
+                "smallest_image_rows": round(self.smallest_image_rows, 3), "row_time_s": self.row_time_s,
+                "limits_hz": {"flicker_min": round(self.flicker_min_hz, 3),
+                              "frame_fit_min": round(self.frame_fit_min_hz, 3),
+                              "resolution_max": round(self.resolution_max_hz, 3),
+                              "driver_max": round(self.driver_max_hz, 3)}}
+
+
+def image_rows(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: Camera) -> np.ndarray:
+    """Height [rows] of the exact images of horizontal discs: ``centres`` (P, K, 3), ``radii`` (P, K)."""
+    rot_t = np.swapaxes(poses.rotation, 1, 2)
+    kmat = camera.intrinsics
+    h1 = (rot_t[:, :, 0] @ kmat.T)[:, None, :]
+    h2 = (rot_t[:, :, 1] @ kmat.T)[:, None, :]
+    h3 = np.einsum("pij,pkj->pki", kmat @ rot_t, centres - poses.position[:, None, :])
+
+    def c(i, j):
+        return radii**2 * (h1[..., i] * h1[..., j] + h2[..., i] * h2[..., j]) - h3[..., i] * h3[..., j]
+
+    return 2 * np.sqrt(np.maximum(c(1, 2) ** 2 - c(1, 1) * c(2, 2), 0.0)) / np.abs(c(2, 2))
+
+
+def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, seed: int = 0) -> float:
+    """Rows of the smallest LED image in any window over sampled poses (the farthest working distance)."""
+    area = working_area(xyz[:, :2], outline)
+    x, y = area[:, 0], area[:, 1]
+    floor = max(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))), 1e-6)
+    poses = sample_poses(area, camera, per_m2=min(400.0, TIMING_POSES / floor), seed=seed)
+    win = find_windows(poses, xyz, radii, camera)
+    ok = win.covered
+    if not ok.any():
+        raise PlanningError("no sampled camera pose sees three whole LEDs: no LED image to fit a frame into; "
+                            "check the luminaire spacing against the camera (docs/camera.md)")
+    sub = poses.subset(np.flatnonzero(ok))
+    t = win.triples[ok]
+    return float(image_rows(sub, xyz[t], radii[t], camera).min())
+
+
+def _three_digits(rate: float) -> float:
+    scale = 10 ** (math.floor(math.log10(rate)) - 2)
+    return float(round(rate / scale) * scale)
+
+
+def choose_timing(frame_len: int, max_run: int, rows: float, row_time_s: float, *,
+                  driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ) -> Timing:
+    """The chip rate within all four limits, or :class:`PlanningError` naming the numbers that conflict."""
+    image_s = rows * row_time_s
+    flicker = 2 * max_run * flicker_hz
+    resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
+    high = min(resolution, driver_max_hz)
+    for frames in (2, 1):
+        fit = frames * frame_len / image_s
+        low = max(flicker, fit)
+        if low <= high:
+            rate = min(max(_three_digits(math.sqrt(low * high)), low), high)
+            return Timing(rate, frame_len, max_run, rows, row_time_s, frames, flicker, fit, resolution,
+                          driver_max_hz)
+    fit = frame_len / image_s
+    raise PlanningError(
+        f"no chip rate fits: a frame of {frame_len} chips must fit in the smallest LED image "
+        f"({rows:.1f} rows x {row_time_s * 1e6:g} us = {image_s * 1e3:.3f} ms), so >= {fit:,.0f} Hz, and flicker "
+        f"needs >= {flicker:,.0f} Hz; but a chip must span {ROWS_PER_CHIP:g} rows (<= {resolution:,.0f} Hz) and the "
+        f"driver switches at most {driver_max_hz:,.0f} Hz; use larger or closer LEDs, a camera with a faster row "
+        "time, a faster driver, or fewer bits")
+
+
+@dataclass(frozen=True)
+class Modulation:
+    """Every luminaire's frame (chips, in layout order) under one line code and chip rate."""
+
+    code: LineCode
+    timing: Timing
+    frames: list[str]
+
+    def summary(self) -> dict:
+        return {"line_code": self.code.name, "preamble": self.code.preamble, **self.timing.summary()}
+
+
+def modulate(words: np.ndarray, word_bits: int, code: LineCode, rows: float, camera: Camera, *,
+             driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ) -> Modulation:
+    """Frames for the words the luminaires send (``id - 1`` or codewords, ``word_bits`` bits)."""
+    frames = [frame_chips(int(w), word_bits, code) for w in words]
+    timing = choose_timing(len(frames[0]), code.max_run, rows, camera.row_time_s,
+                           driver_max_hz=driver_max_hz, flicker_hz=flicker_hz)
+    return Modulation(code, timing, frames)
