@@ -1,0 +1,165 @@
+"""The flashing protocol's wire format (docs/protocol.md): COBS frames, CRC-32, fixed payloads.
+
+A packet is ``address u16 | flags u8 | seq u8 | command u8 | length u16 | payload |
+crc32 u32`` (little-endian; CRC-32/ISO-HDLC over everything before it), COBS-encoded
+and followed by one zero byte. Both the host and the driver (simulated or real) use
+this module, so the two sides cannot disagree on a byte.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+from enum import IntEnum
+
+from cobs import cobs
+
+from ..errors import PlannerError
+
+ANY_ADDRESS = 0xFFFF  # point to point: whichever driver is plugged in answers
+FLAG_RESPONSE = 0x01
+FLAG_ERROR = 0x02
+MAX_PAYLOAD = 1024
+PROTOCOL_VERSION = 1
+
+_HEAD = struct.Struct("<HBBBH")
+_CRC = struct.Struct("<I")
+MAX_FRAME = cobs.max_encoded_length(_HEAD.size + MAX_PAYLOAD + _CRC.size) + 1
+
+
+class Command(IntEnum):
+    HELLO = 1
+    BEGIN = 2
+    WRITE = 3
+    VERIFY = 4
+    COMMIT = 5
+
+
+class Status(IntEnum):
+    """Error codes a driver returns in an error response."""
+
+    BAD_REQUEST = 1  # unknown command or malformed payload
+    OFFSET = 2  # WRITE not at the next offset; detail = bytes held
+    TOO_LARGE = 3  # image longer than a slot
+    NOT_BEGUN = 4  # WRITE/VERIFY/COMMIT without BEGIN
+    INCOMPLETE = 5  # COMMIT before every byte arrived
+    HASH = 6  # staged bytes do not hash to the announced SHA-256
+    IMAGE = 7  # not a configuration image (magic, format, CRC)
+    AUTH = 8  # signature is not HMAC-SHA256 under the site key
+    ROLLBACK = 9  # image version older than the active one (or same version, other image)
+    FLASH = 10  # the flash failed to program or read back
+
+
+class WireError(PlannerError):
+    """A frame that cannot be decoded (damaged in transit): the receiver drops it."""
+
+
+@dataclass(frozen=True)
+class Packet:
+    address: int
+    flags: int
+    seq: int
+    command: int
+    payload: bytes = b""
+
+    @property
+    def is_response(self) -> bool:
+        return bool(self.flags & FLAG_RESPONSE)
+
+    @property
+    def is_error(self) -> bool:
+        return bool(self.flags & FLAG_ERROR)
+
+
+def encode(packet: Packet) -> bytes:
+    """The bytes on the line for ``packet``, delimiter included."""
+    if len(packet.payload) > MAX_PAYLOAD:
+        raise ValueError(f"payload of {len(packet.payload)} bytes exceeds {MAX_PAYLOAD}")
+    body = _HEAD.pack(packet.address, packet.flags, packet.seq, packet.command, len(packet.payload)) + packet.payload
+    return cobs.encode(body + _CRC.pack(zlib.crc32(body))) + b"\x00"
+
+
+def decode(frame: bytes) -> Packet:
+    """A packet from one frame (without its delimiter); :class:`WireError` if damaged."""
+    try:
+        raw = cobs.decode(frame)
+    except cobs.DecodeError as exc:
+        raise WireError(f"bad COBS frame ({exc})") from None
+    if len(raw) < _HEAD.size + _CRC.size:
+        raise WireError(f"frame of {len(raw)} bytes is shorter than a header")
+    body, (crc,) = raw[:-_CRC.size], _CRC.unpack(raw[-_CRC.size:])
+    if zlib.crc32(body) != crc:
+        raise WireError("CRC mismatch")
+    address, flags, seq, command, length = _HEAD.unpack(body[:_HEAD.size])
+    if length != len(body) - _HEAD.size:
+        raise WireError(f"length field {length} disagrees with {len(body) - _HEAD.size} payload bytes")
+    return Packet(address, flags, seq, command, bytes(body[_HEAD.size:]))
+
+
+class Deframer:
+    """Splits a byte stream into frames at zero bytes; drops over-long garbage."""
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+
+    def feed(self, data: bytes) -> list[bytes]:
+        frames = []
+        for byte in data:
+            if byte == 0:
+                if self._buffer:
+                    frames.append(bytes(self._buffer))
+                self._buffer.clear()
+            elif len(self._buffer) < MAX_FRAME:
+                self._buffer.append(byte)
+        return frames
+
+
+# Payloads (docs/protocol.md has the tables).
+HELLO_REPLY = struct.Struct("<BBHII H16sBI32s")
+"""protocol version, capabilities, max block, slot size [bytes], block write time [us], firmware version,
+serial (ASCII, NUL-padded), active slot (0 none, 1 A, 2 B), active image version, active image SHA-256."""
+CAP_AB_SLOTS, CAP_RESUME, CAP_HMAC = 0x01, 0x02, 0x04
+
+BEGIN_REQUEST = struct.Struct("<II32sB")  # length, version, SHA-256, restart (1 = discard staged)
+BEGIN_REPLY = struct.Struct("<II")  # resume offset (bytes already staged), CRC-32 of those bytes
+WRITE_HEAD = struct.Struct("<I")  # offset, followed by the data
+WRITE_REPLY = struct.Struct("<I")  # bytes now staged
+VERIFY_REPLY = struct.Struct("<I32s")  # bytes staged, their SHA-256
+COMMIT_REQUEST = struct.Struct("<32s")  # SHA-256 the host expects to become active
+COMMIT_REPLY = struct.Struct("<BI")  # active slot, active image version
+ERROR_HEAD = struct.Struct("<BI")  # status, detail; followed by an ASCII message
+
+
+@dataclass(frozen=True)
+class Hello:
+    protocol: int
+    capabilities: int
+    max_block: int
+    slot_size: int
+    block_write_us: int
+    firmware_version: int
+    serial: str
+    active_slot: int
+    active_version: int
+    active_sha256: bytes
+
+    def pack(self) -> bytes:
+        return HELLO_REPLY.pack(self.protocol, self.capabilities, self.max_block, self.slot_size, self.block_write_us,
+                                self.firmware_version, self.serial.encode("ascii")[:16], self.active_slot,
+                                self.active_version, self.active_sha256)
+
+    @classmethod
+    def unpack(cls, payload: bytes) -> "Hello":
+        f = list(HELLO_REPLY.unpack(payload[:HELLO_REPLY.size]))
+        f[6] = f[6].rstrip(b"\x00").decode("ascii", "replace")
+        return cls(*f)
+
+
+def error_payload(status: Status, detail: int = 0, message: str = "") -> bytes:
+    return ERROR_HEAD.pack(int(status), detail) + message.encode("ascii", "replace")[:200]
+
+
+def parse_error(payload: bytes) -> tuple[int, int, str]:
+    status, detail = ERROR_HEAD.unpack(payload[:ERROR_HEAD.size])
+    return status, detail, payload[ERROR_HEAD.size:].decode("ascii", "replace")
