@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 import traceback
@@ -296,6 +297,9 @@ def console_main(argv: list[str] | None = None, command=None, name: str = "vlp-p
             traceback.print_exc()
         print(f"{name}: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except BrokenPipeError:  # the reader went away (``| head``): stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except KeyboardInterrupt:
         print(f"{name}: interrupted; no output was written", file=sys.stderr)
         return 130

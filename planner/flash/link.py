@@ -1,0 +1,119 @@
+"""The host's end of the serial link: one request, its response, timeouts and retries.
+
+Stop and wait (docs/protocol.md section 3): a request is resent with the same
+sequence number until its response arrives or the retries run out; damaged frames,
+other drivers' answers and stale responses are skipped. Works on any pyserial
+``Serial`` (a real port, ``sim://``, a pseudo-terminal).
+"""
+
+from __future__ import annotations
+
+import secrets
+import time
+from dataclasses import dataclass, field
+
+from ..errors import PlannerError
+from .wire import (FLAG_RESPONSE, Command, Deframer, Packet, Status, WireError, decode, encode, parse_error)
+
+RETRIES = 4
+BASE_TIMEOUT_S = 0.020
+
+
+class LinkError(PlannerError):
+    """A driver did not answer (after every retry), or answered with an error status."""
+
+    def __init__(self, message: str, status: int | None = None, detail: int = 0):
+        super().__init__(message)
+        self.status = status
+        self.detail = detail
+
+
+@dataclass
+class LinkStats:
+    """Counters over the link's life: for progress lines and the benchmark."""
+
+    requests: int = 0
+    retries: int = 0
+    bytes_sent: int = 0
+    bytes_received: int = 0
+    dropped_frames: int = 0
+    busy_s: float = 0.0
+    by_command: dict = field(default_factory=dict)
+
+
+class Link:
+    """Requests to drivers over ``port`` (a pyserial ``Serial``) at ``baud`` [bit/s]."""
+
+    def __init__(self, port, baud: int = 115200, retries: int = RETRIES):
+        self.port = port
+        self.baud = baud
+        self.retries = retries
+        self._seqs: dict[int, int] = {}
+        self.seq = 0
+        self.stats = LinkStats()
+        self._deframer = Deframer()
+
+    def line_time_s(self, n_bytes: int) -> float:
+        """Seconds ``n_bytes`` take on the line (10 bits a byte: start, 8 data, stop)."""
+        return n_bytes * 10 / self.baud
+
+    def timeout_s(self, request_bytes: int, response_bytes: int, driver_s: float = 0.0) -> float:
+        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work."""
+        return BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s
+
+    def request(self, address: int, command: Command, payload: bytes = b"", *, response_bytes: int = 80,
+                driver_s: float = 0.0) -> Packet:
+        """Send one request and return its (non-error) response; :class:`LinkError` otherwise."""
+        # One counter per driver address, from a random start each session: a driver's cache of its
+        # last request then never mistakes a new request for a retry (docs/protocol.md section 3).
+        self.seq = self._seqs[address] = (self._seqs.get(address, secrets.randbelow(256)) + 1) & 0xFF
+        frame = encode(Packet(address, 0, self.seq, int(command), payload))
+        timeout = self.timeout_s(len(frame), response_bytes, driver_s)
+        started = time.perf_counter()
+        self.stats.requests += 1
+        self.stats.by_command[command.name] = self.stats.by_command.get(command.name, 0) + 1
+        try:
+            for attempt in range(self.retries + 1):
+                if attempt:
+                    self.stats.retries += 1
+                self.port.write(frame)
+                self.stats.bytes_sent += len(frame)
+                reply = self._await(address, command, timeout)
+                if reply is None:
+                    continue
+                if reply.is_error:
+                    status, detail, message = parse_error(reply.payload)
+                    name = Status(status).name if status in Status._value2member_map_ else str(status)
+                    raise LinkError(f"driver {_addr(address)} refused {command.name}: {name} "
+                                    f"({message or 'no detail'})", status, detail)
+                return reply
+        finally:
+            self.stats.busy_s += time.perf_counter() - started
+        raise LinkError(f"driver {_addr(address)} did not answer {command.name} "
+                        f"({self.retries + 1} attempts, {timeout * 1e3:.0f} ms each); check the cable, the "
+                        "driver's power and its bus address")
+
+    def _await(self, address: int, command: Command, timeout: float) -> Packet | None:
+        deadline = time.perf_counter() + timeout
+        while True:
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                return None
+            self.port.timeout = left
+            data = self.port.read(max(1, self.port.in_waiting))
+            if not data:
+                continue
+            self.stats.bytes_received += len(data)
+            for frame in self._deframer.feed(data):
+                try:
+                    p = decode(frame)
+                except WireError:
+                    self.stats.dropped_frames += 1
+                    continue
+                if (p.flags & FLAG_RESPONSE and p.seq == self.seq and p.command == command
+                        and (p.address == address or address == 0xFFFF)):
+                    return p
+
+
+def _addr(address: int) -> str:
+    return "(any)" if address == 0xFFFF else f"at address {address}"
