@@ -148,3 +148,19 @@ def test_dry_run_opens_nothing_and_says_what_it_would_do(site, capsys):
     assert console_main([str(site / "p512" / "plan.yaml"), "R01C01", "R01C02", "--bus", "--dry-run"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 2 and "address 1" in out[0] and out[0].endswith("flash")
+
+
+def test_interactive_mode_asks_for_each_driver_on_a_terminal(site, tmp_path):
+    """The installer's session, with a real pseudo-terminal as stdin: Enter flashes, s skips."""
+    master, slave = os.openpty()
+    os.write(master, b"\ns\n")  # plug the first driver and press Enter; skip the second
+    proc = subprocess.run([sys.executable, "-m", "planner.flash_cli", str(site / "p512" / "plan.yaml"), "R01C01",
+                           "R01C02", "--port", f"sim://?key={KEY.hex()}", "--key-file", str(site / "key"),
+                           "--journal", str(tmp_path / "j.json")], stdin=slave, capture_output=True, text=True,
+                          cwd=ROOT, timeout=60)
+    os.close(master)
+    os.close(slave)
+    assert proc.returncode == 0, proc.stderr
+    assert "plug the driver of R01C01 (ID" in proc.stdout and "plug the driver of R01C02" in proc.stdout
+    assert proc.stdout.count("flashed, verified") == 1
+    assert list(json.loads((tmp_path / "j.json").read_text())["luminaires"]) == ["R01C01"]
