@@ -323,8 +323,9 @@ def repair_labels(labels, n: int, windows, shape, symmetric, K: int, *, seed: in
 
 
 def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, time_budget: float = 10.0,
-                 hint: np.ndarray | None = None) -> tuple[np.ndarray | None, bool]:
-    """CP-SAT: (valid labels or None, True if K labels are proved infeasible).
+                 hint: np.ndarray | None = None) -> tuple[np.ndarray | None, bool, bool]:
+    """CP-SAT: (valid labels or None, True if K labels are proved infeasible, True if the
+    wall-clock safety net stopped the search, so the result may differ on another machine).
 
     ``time_budget`` is deterministic time (about seconds, reproducible); wall time is
     capped at three times that as a safety net. ``hint`` seeds the search.
@@ -360,14 +361,15 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
     solver.parameters.random_seed = seed
     solver.parameters.stop_after_first_solution = True  # else a long interleaved task runs on to the wall limit
     status = solver.Solve(model)
+    wall_stopped = solver.WallTime() >= 0.99 * 3.0 * time_budget
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        return None, status == cp_model.INFEASIBLE
+        return None, status == cp_model.INFEASIBLE, wall_stopped
     lab = np.zeros(n, np.int64)
     for v, var in x.items():
         lab[v] = solver.Value(var)
     if count_conflicts(w, s, symmetric, lab, K):
-        return None, False  # never expected: independent check of the model
-    return lab, False
+        return None, False, wall_stopped  # never expected: independent check of the model
+    return lab, False, wall_stopped
 
 
 def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time_budget: float = 10.0,
@@ -386,7 +388,7 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
     lb = lower_bound_labels(s, symmetric)
     lbb = max(1, (lb - 1).bit_length())  # ceil(log2 lb), at least 1
     steps = int(LS_STEPS_PER_SECOND * time_budget)
-    proved_below = False
+    proved_below = wall_stopped = False
     for b in range(lbb, 64):
         K = 2 ** b
         if (int(s.max(initial=0)) + 1) * K ** 3 >= 2 ** 62:  # keys overflow: only absurd shape counts
@@ -398,10 +400,13 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
             hint, lab = lab, None
             if len(w) <= cpsat_max_windows and time_budget > 0:
                 method = "CP-SAT"
-                lab, proved = cpsat_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=hint)
+                lab, proved, wall = cpsat_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=hint)
+                wall_stopped |= wall
             if lab is None and K >= n:
                 lab, method = np.arange(n, dtype=np.int64), "distinct labels"
         if lab is not None:
+            if wall_stopped:
+                method += " (CP-SAT stopped by the wall clock: the result may differ on another machine)"
             return WindowCode(lab, K, b, lb, lbb, method, b == lbb or proved_below)
         proved_below = proved
     raise AssertionError("unreachable: distinct labels are valid")
