@@ -16,6 +16,7 @@ from .camera import Camera, Poses, rotation_from_angles
 from .errors import PositioningError
 from .locate import METHODS
 from .observation import NOISE_PX, observe
+from .plot_style import save_png, styled
 
 # The paper's rig (Table 2), metres. The LED radius is not given: 0.1 m is assumed,
 # the size of a common 18 W round panel (about 0.2 m across).
@@ -112,10 +113,9 @@ def table3_text(results: list[Trials]) -> str:
     return "\n".join(lines)
 
 
+@styled
 def plot_cdf(results: list[Trials], path) -> None:
     """One panel per tilt: the CDF of each method's error (log axis, cm), as the paper's Fig. 8 and 10."""
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(results), figsize=(3.2 * len(results), 3.2), sharey=True, squeeze=False)
@@ -132,8 +132,7 @@ def plot_cdf(results: list[Trials], path) -> None:
     axes[0][0].set_ylabel("cumulative fraction of trials")
     axes[0][0].legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_png(fig, path)
 
 
 ERROR_POSES_PER_M2 = 4.0

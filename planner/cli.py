@@ -26,6 +26,7 @@ from .locate import METHODS
 from .modulation import DRIVER_MAX_HZ
 from .pipeline import (SCHEMES, FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
                        write_outputs)
+from .report import length_text
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 
@@ -75,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
         "(DXF) or a luminaire list (YAML/CSV), give every luminaire a short ID (the paper's region code, "
         "or shorter IDs that keep every camera window unique), verify the plan under a tilted camera, and "
-        "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png and each luminaire's driver "
+        "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
         "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
@@ -130,7 +131,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="version written into every configuration image; drivers refuse older ones (default 1)")
     g.add_argument("--no-firmware", action="store_true", help="do not write OUTDIR/firmware/")
     g = p.add_argument_group("output")
-    g.add_argument("--no-map", action="store_true", help="do not draw map.png and coverage.png")
+    g.add_argument("--no-map", action="store_true", help="do not draw map.png, coverage.png and error.png")
+    g.add_argument("--no-report", action="store_true",
+                   help="do not write site-report.html and site-report.pdf (vlp-report writes them later)")
     g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
     g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
     p.add_argument("--version", action="version", version=f"vlp-plan {__version__}")
@@ -186,7 +189,7 @@ def main(argv: list[str] | None = None) -> dict:
     _progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
                                                              args.mcu_clock_hz, args.image_version)
-    written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware)
+    written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware, with_report=not args.no_report)
     a, g = plan.assignment, plan.graph
     summary = {
         "layout": str(args.layout),
@@ -264,13 +267,9 @@ def _print_summary(s: dict) -> None:
               f"image ({m['smallest_image_rows']:.0f} rows)")
     a = s["accuracy"]
     if a and a["located"]:
-        print(f"  accuracy {a['method']} method: median {_length(a['median_m'])}, 90 % {_length(a['p90_m'])}, "
-              f"max {_length(a['max_m'])} over {a['located']} simulated poses (edge noise {a['noise_px']:g} px)")
+        print(f"  accuracy {a['method']} method: median {length_text(a['median_m'])}, 90 % {length_text(a['p90_m'])}, "
+              f"max {length_text(a['max_m'])} over {a['located']} simulated poses (edge noise {a['noise_px']:g} px)")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
-
-
-def _length(metres: float) -> str:
-    return f"{metres * 1e3:.2f} mm" if metres < 0.01 else f"{metres * 1e2:.1f} cm"
 
 
 def _verification_line(v: dict) -> str:

@@ -21,6 +21,7 @@ from .efficiency import (CURVE_SIZES, PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDO
 from .errors import UsageError
 from .pipeline import read_layout
 from .plan import load_plan
+from .plot_style import save_png, styled
 
 DEFAULT_LAYOUTS = Path(__file__).resolve().parent.parent / "layouts"
 MAX_SIZE = 10_000_000
@@ -174,10 +175,9 @@ SERIES = (  # attribute, label, grey, line style, marker, marker size: readable 
 )
 
 
+@styled
 def write_plot(rows: list[CurveRow], path: Path) -> None:
     """Draw bits against luminaires (log x), one line per series, written atomically to ``path``."""
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter
 
@@ -200,13 +200,12 @@ def write_plot(rows: list[CurveRow], path: Path) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.resolve().parent)
     os.close(fd)
     try:
-        fig.savefig(tmp, dpi=120)
+        save_png(fig, tmp)
         os.replace(tmp, path)
     except BaseException:
+        plt.close(fig)
         Path(tmp).unlink(missing_ok=True)
         raise
-    finally:
-        plt.close(fig)
 
 
 def console_main(argv: list[str] | None = None) -> int:

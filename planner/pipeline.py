@@ -186,16 +186,20 @@ class FirmwareOptions:
 
 
 def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
-                  firmware: FirmwareOptions | None = FirmwareOptions()) -> list[Path]:
-    """Write ``plan.yaml``, the annotated DXF, the maps and the firmware files into ``outdir``, atomically.
+                  firmware: FirmwareOptions | None = FirmwareOptions(), with_report: bool = True) -> list[Path]:
+    """Write ``plan.yaml``, the annotated DXF, the maps, the site report and the firmware files into ``outdir``, atomically.
 
     Everything is written into a temporary directory beside ``outdir`` and moved
     into place at the end: on any error, no partial output is left. An existing
-    ``outdir`` is replaced only if it is empty or holds a previous plan.
+    ``outdir`` is replaced only if it is empty or holds a previous plan that no
+    driver has been flashed with (no ``as-built.json``).
     """
     outdir = Path(outdir)
     if outdir.exists() and not (outdir.is_dir() and (not any(outdir.iterdir()) or (outdir / "plan.yaml").exists())):
         raise UsageError(f"{outdir}: exists and is not a vlp-plan output directory; choose another -o")
+    if (outdir / "as-built.json").exists():
+        raise UsageError(f"{outdir}: holds as-built.json, the record of drivers flashed with the plan there, which "
+                         "replanning would delete; choose another -o, or move as-built.json away first")
     outdir.parent.mkdir(parents=True, exist_ok=True)
     source = Path(plan.layout.source_path)
     stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
@@ -224,6 +228,10 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
                 render_coverage(plan, stage / "coverage.png")
             if plan.accuracy is not None:
                 render_error(plan, stage / "error.png")
+        if with_report:
+            from .report_files import write_report
+
+            write_report(document, plan_hash(text), stage, stage)
         names = sorted(p.name for p in stage.iterdir())
         if outdir.exists():
             old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")

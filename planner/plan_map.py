@@ -9,13 +9,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .plan import Plan  # noqa: E402
+from .plan import Plan
+from .plot_style import save_png, styled
 
 LABEL_LIMIT = 2000
 """Above this many luminaires, IDs are not written on the map (unreadable)."""
@@ -34,6 +32,7 @@ def _region_colours(edges: np.ndarray, regions: np.ndarray) -> np.ndarray:
     return np.array([colour[int(r)] % 4 for r in regions])
 
 
+@styled
 def render_map(plan: Plan, path: str | Path) -> None:
     """Write the plan's map as PNG to ``path``."""
     xy = plan.layout.xy
@@ -89,14 +88,14 @@ def render_map(plan: Plan, path: str | Path) -> None:
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, markerscale=12 / marker_pt,
               frameon=False)
     fig.tight_layout()
-    fig.savefig(path, format="png", metadata={"Software": None})
-    plt.close(fig)
+    save_png(fig, path)
 
 
 COVERAGE_BIN_M = 0.25
 """Side of the squares over which the coverage map averages poses [m]."""
 
 
+@styled
 def render_coverage(plan: Plan, path: str | Path) -> None:
     """Write the verification's coverage map as PNG: share of decodable poses per square.
 
@@ -134,10 +133,10 @@ def render_coverage(plan: Plan, path: str | Path) -> None:
     ax.set_aspect("equal")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
-    fig.savefig(path, format="png", metadata={"Software": None})
-    plt.close(fig)
+    save_png(fig, path)
 
 
+@styled
 def render_error(plan: Plan, path: str | Path) -> None:
     """Write the expected-error map as PNG: median and 90th-percentile error per square, side by side.
 
@@ -165,5 +164,4 @@ def render_error(plan: Plan, path: str | Path) -> None:
     s = acc.summary()
     fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method, edge noise {s['noise_px']:g} px, "
                  f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
-    fig.savefig(path, format="png", metadata={"Software": None})
-    plt.close(fig)
+    save_png(fig, path)

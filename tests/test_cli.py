@@ -43,9 +43,10 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
     for run in ("a", "b"):
         main([str(LAYOUTS / "dialux-office.dxf"), "-o", str(tmp_path / run), "--json"])
     names = sorted(p.name for p in (tmp_path / "a").iterdir())
-    assert names == ["coverage.png", "dialux-office-vlp.dxf", "error.png", "firmware", "map.png", "plan.yaml"]
+    assert names == ["coverage.png", "dialux-office-vlp.dxf", "error.png", "firmware", "map.png", "plan.yaml",
+                     "site-report.html", "site-report.pdf"]
     files = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
-    assert len(files) == 5 + 3 * 48  # a header, a JSON and an image per luminaire
+    assert len(files) == 7 + 3 * 48  # a header, a JSON and an image per luminaire
     for name in files:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
 
