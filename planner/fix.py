@@ -79,20 +79,22 @@ def check_geometry(xyz: np.ndarray) -> None:
 def anchor_triple(centres_px: np.ndarray) -> list[int]:
     """Of the (up to six) first LEDs, the three spanning the largest image triangle.
 
-    Lines image as lines, so LEDs whose images are collinear are collinear on the
-    ceiling: refused here, before any luminaire is identified.
+    If those six lie on one line (a snapshot listing a row of LEDs first), all LEDs
+    are searched. Lines image as lines, so LEDs whose images are all collinear are
+    collinear on the ceiling: refused here, before any luminaire is identified.
     """
-    best, area = [0, 1, 2], -1.0
-    for t in combinations(range(min(len(centres_px), 6)), 3):
-        a, b, c = centres_px[list(t)]
-        s = abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
-        if s > area:
-            best, area = list(t), s
     span = np.ptp(centres_px, axis=0).max() if len(centres_px) else 0.0
-    if area < 1e-3 * span**2:
-        raise PositioningError("the LEDs seen lie on one line: no unique position; turn the camera to take in "
-                               "a luminaire off that line")
-    return best
+    best, area = [0, 1, 2], -1.0
+    for first in (6, len(centres_px)):
+        for t in combinations(range(min(len(centres_px), first)), 3):
+            a, b, c = centres_px[list(t)]
+            s = abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+            if s > area:
+                best, area = list(t), s
+        if area >= 1e-3 * span**2:
+            return best
+    raise PositioningError("the LEDs seen lie on one line: no unique position; turn the camera to take in "
+                           "a luminaire off that line")
 
 
 def residuals_batch(x: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,

@@ -51,13 +51,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _pose(text: str) -> tuple[np.ndarray, np.ndarray]:
+def _pose(text: str, flag: str = "--simulate") -> tuple[np.ndarray, np.ndarray]:
     try:
         vals = [float(v) for v in text.split(",")]
     except ValueError:
         vals = []
     if len(vals) != 6 or not all(map(math.isfinite, vals)):
-        raise UsageError(f"--simulate {text!r}: expected six numbers X,Y,Z,TILT,AZ,ROLL (metres, degrees)")
+        raise UsageError(f"{flag} {text!r}: expected six numbers X,Y,Z,TILT,AZ,ROLL (metres, degrees)")
     return np.array(vals[:3]), rotation_from_angles(*np.radians(vals[3:]))[0]
 
 
