@@ -137,3 +137,17 @@ def test_locate_needs_an_observation_or_a_pose(plan_path, capsys):
     assert code == 2 and "OBSERVATION.json" in err
     code, _, err = _run([plan_path, "--simulate", "1,2,3"], capsys)
     assert code == 2 and "six numbers" in err
+
+
+
+def test_anchor_triple_looks_past_a_row_of_leds_listed_first():
+    """Regression (found by the receiver twin): the anchor triple was sought among the first six
+    LEDs only, so a snapshot in scan order, one collinear row first, was refused as "one line"."""
+    from planner.fix import anchor_triple
+
+    row = [(100.0 + 300 * k, 200.0) for k in range(6)]
+    centres = np.array(row + [(400.0, 900.0), (1300.0, 950.0)])
+    best = anchor_triple(centres)
+    assert 6 in best or 7 in best
+    with pytest.raises(PositioningError, match="one line"):
+        anchor_triple(np.array(row + [(2000.0, 200.0)]))  # all on one line: still refused
