@@ -11,6 +11,7 @@ from __future__ import annotations
 import base64
 import os
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -58,11 +59,18 @@ def write_report(doc: dict, plan_hash: str, plan_dir: str | Path, outdir: str | 
     """Write the HTML and PDF site report of the plan ``doc`` into ``outdir``; return their paths.
 
     ``plan_dir`` holds the maps drawn with the plan (missing ones are named in
-    their place); ``journal`` maps luminaire names to as-built entries.
+    their place); ``journal`` maps luminaire names to as-built entries. Names in
+    scripts the figures' font lacks (CJK) print as boxes in the PNGs and PDF
+    without a warning each time; the HTML shows them as they are.
     """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .* missing from font")
+        return _write_report(doc, plan_hash, Path(plan_dir), Path(outdir), journal)
+
+
+def _write_report(doc: dict, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None) -> list[Path]:
     from . import __version__
 
-    plan_dir, outdir = Path(plan_dir), Path(outdir)
     lums = doc["luminaires"]
     route, _ = walking_order(np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2))
     stops = checklist(doc, journal)

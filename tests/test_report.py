@@ -223,3 +223,17 @@ def test_replanning_refuses_to_delete_an_as_built_journal(site, tmp_path, capsys
 
     assert console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(plan)]) == 2
     assert "as-built.json" in capsys.readouterr().err and (plan / "as-built.json").read_text() == "{}"
+
+
+def test_pdf_names_outside_the_builtin_font_fall_back_to_an_embedded_one(tmp_path):
+    from planner.report_files import write_report
+
+    doc = {"source": {"file": "büro.yaml", "unit": "m"}, "scheme": "unique",
+           "code": {"bits": 2, "naive_bits": 2, "lower_bound_bits": 2, "max_id": 3},
+           "luminaires": [{"name": name, "x": float(k), "y": 0.0, "id": k + 1, "parity": "odd", "region": 0}
+                          for k, name in enumerate(["Светильник-1", "Büro-2", "L3"])]}
+    html, pdf = write_report(doc, "0" * 16, tmp_path, tmp_path)
+    text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
+    assert "Светильник-1" in text and "Büro-2" in text  # real text, not boxes or '?'
+    assert "Светильник-1" in html.read_text()
+    assert len(render_pdf(pdf, tmp_path)) == 7  # title, 3 "not drawn" map pages, route, bill, checklist
