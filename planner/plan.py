@@ -122,9 +122,13 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
     }
 
 
+_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)  # libyaml: same text, about 4x faster
+
+
 def dump_plan(document: dict) -> str:
     """``plan.yaml`` text: block style, one flow mapping per luminaire's source."""
-    return yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120, allow_unicode=True)
+    return yaml.dump(document, Dumper=_DUMPER, sort_keys=False, default_flow_style=None, width=120,
+                     allow_unicode=True)
 
 
 def plan_hash(text: str) -> str:
