@@ -7,9 +7,10 @@
    brightness crosses half its plateau (sub-pixel, by interpolation). Rows are
    lit or dark as a whole, so these points lie on the LED's rim whatever the
    stripes; the ellipse is fitted to them (:func:`planner.ellipse.fit_ellipse`).
-   A fitted ellipse reaching outside the image, or not matching the blob's extent
-   (a sliver of an LED cut by the border fits a wrong small ellipse), is dropped; a
-   blob merely touching the border is kept if its ellipse fits inside.
+   A fitted ellipse reaching outside the image, or leaving lit pixels of its own
+   rows outside it (a sliver of an LED cut by the border fits a wrong small ellipse),
+   is dropped; a blob merely touching the border, or merged with another LED's
+   stripes below or above it, is kept if its ellipse fits.
 3. **Chips**: the mean of each row's inner chord gives the LED's drive over time
    (row ``v`` at ``v * row_time_s``); thresholded halfway between its dark and lit
    levels, each run of rows becomes ``round(rows / rows_per_chip)`` chips; the
@@ -41,8 +42,9 @@ MIN_BLOB_PX = 40
 THRESHOLD_SIGMA = 10.0
 """A pixel is lit if it exceeds the ceiling's level by this many noise standard deviations (at least 16 DN)."""
 
-BORDER_PX = 0.5
-"""A fitted ellipse may reach this far past the outermost pixel centres [px] (the sensor's edge) and count as whole."""
+BORDER_PX = 1.0
+"""A fitted ellipse may reach this far past the outermost pixel centres [px] and count as whole: half a
+pixel to the sensor's edge and half a pixel beyond it, whose sliver is lost in the fit's noise."""
 
 CHORD_SHARE = 0.6
 """Share of each row's chord (centred) whose pixels are averaged into the row's drive level."""
@@ -139,6 +141,37 @@ def _row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: flo
     return levels
 
 
+def _fits_blob(own: np.ndarray, ellipse: Ellipse, x0: int, y0: int, slack: float) -> bool:
+    """Whether the fitted ellipse accounts for the blob's lit pixels in its own rows.
+
+    In every row of the ellipse grown by ``slack`` [px] (blur, sub-pixel edges), the lit
+    pixels must lie within the grown ellipse's chord, and together they must nearly span
+    the ellipse's horizontal extent. A sliver of an LED cut by the border fits a small wrong
+    ellipse whose rows hold lit pixels out to the border: refused. Rows beyond the
+    grown ellipse belong to another LED merged into the blob by the stripe closing and
+    are left to it.
+    """
+    grown = ellipse.shape + slack * np.eye(2)
+    q = np.linalg.inv(grown @ grown)
+    cx, cy = ellipse.cx - x0, ellipse.cy - y0
+    half_y = math.sqrt((grown @ grown)[1, 1])
+    rows = np.arange(max(0, math.ceil(cy - half_y)), min(own.shape[0], math.floor(cy + half_y) + 1))
+    lit = own[rows].any(axis=1)
+    if not lit.any():
+        return False
+    rows, lit_rows = rows[lit], own[rows[lit]]
+    first = lit_rows.argmax(axis=1)
+    last = lit_rows.shape[1] - 1 - lit_rows[:, ::-1].argmax(axis=1)
+    dy = rows - cy
+    a, b, c = q[0, 0], 2 * q[0, 1] * dy, q[1, 1] * dy * dy - 1
+    root = np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))
+    lo, hi = (-b - root) / (2 * a) + cx, (-b + root) / (2 * a) + cx
+    if np.any(first < lo - 1) or np.any(last > hi + 1):
+        return False
+    width = 2 * math.sqrt((ellipse.shape @ ellipse.shape)[0, 0])  # the ellipse's horizontal extent
+    return float(last.max() - first.min()) >= 0.9 * width - slack
+
+
 def chips_from_levels(levels: np.ndarray, rows_per_chip: float) -> str:
     """The chips a row-level sequence shows: threshold halfway, runs to chip counts, partial end runs dropped."""
     levels = levels[np.isfinite(levels)]
@@ -188,8 +221,7 @@ def decode_frame(image: np.ndarray, camera: Camera, modulation: Modulation, *,
             blobs.append(Blob(bbox, None, "", None, "too few lit rows for an ellipse"))
             continue
         half = np.sqrt(np.diag(ellipse.shape @ ellipse.shape))
-        slack = 4.0 + 3.0 * blur_px
-        if w > 2 * half[0] + slack or h > 2 * half[1] + slack or w < 0.9 * 2 * half[0] - slack:
+        if not _fits_blob(own, ellipse, x0, y0, slack=4.0 + 3.0 * blur_px):
             touching = x == 0 or y == 0 or x + w >= width or y + h >= height
             blobs.append(Blob(bbox, ellipse, "", None, "cut by the image border" if touching
                               else "blob and fitted ellipse disagree"))
