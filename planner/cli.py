@@ -27,6 +27,7 @@ from .modulation import DRIVER_MAX_HZ
 from .pipeline import (SCHEMES, FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
                        write_outputs)
 from .report import length_text
+from .window_set import INSTALL_TOLERANCE_M
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 
@@ -147,6 +148,11 @@ def _add_verify_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--tolerance", type=_positive_float, default=CONGRUENCE_TOLERANCE_M, metavar="M",
                    help=f"triangles whose sides differ by less than this look alike to the receiver [m] "
                    f"(default {CONGRUENCE_TOLERANCE_M:g})")
+    g.add_argument("--install-tolerance", type=_non_negative_float, default=None if p.prog == "vlp-verify" else
+                   INSTALL_TOLERANCE_M, metavar="M",
+                   help="installed luminaires may lie this far from the drawing; every triangle that may then be a "
+                   f"window is protected [m] (default {INSTALL_TOLERANCE_M:g}"
+                   + (", or the plan's" if p.prog == "vlp-verify" else "") + ")")
     if p.prog == "vlp-plan":
         g.add_argument("--camera", metavar="YAML", help="camera file (docs/camera.md); default: the paper's camera")
         g.add_argument("--no-verify", action="store_true",
@@ -184,7 +190,7 @@ def main(argv: list[str] | None = None) -> dict:
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, _camera(args), not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
-                                         args.driver_max_hz))
+                                         args.driver_max_hz, args.install_tolerance))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     _progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
@@ -232,6 +238,14 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
               "scheme; see coverage.png and vlp-verify", file=sys.stderr)
         summary["exit_code"] = EXIT_AMBIGUOUS
+    elif v is not None and not v.clean:
+        first = v.window_set.conflicts[0]
+        names = [lum.name for lum in plan.layout.luminaires]
+        print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} triangles that may be windows read like "
+              f"other luminaires under the {plan.assignment.scheme} scheme, first "
+              + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
+              file=sys.stderr)
+        summary["exit_code"] = EXIT_AMBIGUOUS
     return summary
 
 
@@ -254,7 +268,9 @@ def _print_summary(s: dict) -> None:
         for name, c in s["schemes_considered"].items():
             eff = 1 - c["bits"] / s["naive_bits"] if s["naive_bits"] else 0.0
             amb = c["ambiguous_poses"]
-            state = "not verified" if amb is None else "verified" if amb == 0 else f"{amb} ambiguous poses"
+            clash = c.get("window_set_conflicts")
+            state = ("not verified" if amb is None else f"{amb} ambiguous poses" if amb else
+                     f"{clash} triangles read alike" if clash else "verified")
             parts.append(f"{name} {c['bits']} bits ({100 * eff:.0f} %, {state})")
         print(f"  schemes  {'; '.join(parts)}; naive {s['naive_bits']} bits")
     v = s["verification"]
@@ -274,11 +290,18 @@ def _print_summary(s: dict) -> None:
 
 def _verification_line(v: dict) -> str:
     n = max(v["poses"], 1)
-    line = (f"{v['poses']} poses: {100 * v['coverage']:.1f} % decodable, {v['ambiguous']} ambiguous, "
+    line = (f"{v['poses']} sampled poses: {100 * v['coverage']:.1f} % decodable, {v['ambiguous']} ambiguous, "
             f"{100 * v['collinear'] / n:.1f} % collinear, {100 * v['too_few_leds'] / n:.1f} % see fewer than 3 LEDs")
     if v["first_conflicts"]:
         group = v["first_conflicts"][0]
         line += "; first conflict: " + " vs ".join("(" + ", ".join(t) + ")" for t in group[:2])
+    w = v.get("window_set")
+    if w:
+        line += (f"\n  windows  {w['triangles']} triangles that may be windows (empty, sides up to "
+                 f"{w['max_side_m']:g} m from samples, installed within {w['install_tolerance_m']:g} m): "
+                 f"{w['read_alike']} read like another triple")
+        if w["first_conflicts"]:
+            line += "; first: " + " vs ".join("(" + ", ".join(t) + ")" for t in w["first_conflicts"][0][:2])
     return line
 
 

@@ -25,7 +25,8 @@ from .errors import InputError, UsageError
 from .graph import build_graph
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from .plan import Plan, dump_plan, plan_document, plan_hash
-from .verify import classify, observe
+from .verify import check_window_set, classify, observe, side_bound
+from .window_set import INSTALL_TOLERANCE_M
 from .window_scheme import assign_unique, assign_window
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
@@ -63,6 +64,7 @@ class PlanOptions:
     error_poses_per_m2: float = ERROR_POSES_PER_M2
     line_code: str = "manchester"
     driver_max_hz: float = DRIVER_MAX_HZ
+    install_tolerance_m: float = INSTALL_TOLERANCE_M
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -137,22 +139,34 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     if options.scheme in ("window", "auto"):
         made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
                                        time_budget=options.time_budget, per_m2=options.poses_per_m2,
-                                       tolerance_m=options.tolerance_m, observations=observations)
+                                       tolerance_m=options.tolerance_m, install_tolerance_m=options.install_tolerance_m,
+                                       observations=observations)
     if options.scheme == "unique":
         unique = assign_unique(xy, graph)
         made["unique"] = (unique, check(unique.ids))
+    bound = max([side_bound(v.windows, xyz, options.tolerance_m) for _, v in made.values() if v]
+                + [float(a.detail.get("max_side_m", 0.0)) for a, _ in made.values()], default=0.0)
+
+    def judged(a, v):  # every scheme is also judged on the window set, up to one side bound
+        return a, (v and replace(v, window_set=check_window_set(xyz, radii, a.ids, bound,
+                                                                  tolerance_m=options.tolerance_m,
+                                                                  install_tolerance_m=options.install_tolerance_m)))
+
+    made = {k: judged(a, v) for k, (a, v) in made.items()}
     if options.scheme == "auto":
-        clean = [k for k, (_, v) in made.items() if not v.conflicts]
+        clean = [k for k, (_, v) in made.items() if v.clean]
         if clean:
             chosen = min(clean, key=lambda k: (made[k][0].bits, k != "paper"))
         else:
             unique = assign_unique(xy, graph)
-            made["unique"] = (unique, check(unique.ids))
+            made["unique"] = judged(unique, check(unique.ids))
             chosen = "unique"
     else:
         chosen = options.scheme
     assignment, verification = made[chosen]
-    considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None)} for k, (a, v) in made.items()}
+    considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),
+                      "window_set_conflicts": (len(v.window_set.conflicts) if v and v.window_set else None)}
+                  for k, (a, v) in made.items()}
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
     code = line_code(options.line_code)
     index = assignment.ids - 1

@@ -140,17 +140,16 @@ def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg,
 
 def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
     """``count`` poses, drawn as the verification draws them, where the plan is decodable."""
-    from .verify import DECODABLE, Observation, classify
-    from .windows import area_m2, canonical_windows, find_windows, sample_poses, working_area
+    from .verify import DECODABLE, classify, observe_poses
+    from .windows import area_m2, sample_poses, working_area
 
     xyz = twin.site.xyz
     area = working_area(xyz[:, :2], twin.outline)
     per_m2 = 3.0 * count / max(area_m2(area), 1e-6)
     for _ in range(6):
         poses = sample_poses(area, twin.camera, per_m2, seed)
-        pw = find_windows(poses, xyz, twin.site.radii, twin.camera)
-        ws = canonical_windows(pw.triples[pw.covered], xyz)
-        status = classify(Observation(poses.position, pw, ws, per_m2, seed, 0.05), twin.site.ids).status
+        obs = observe_poses(poses, xyz, twin.site.radii, twin.camera, per_m2=per_m2, seed=seed)
+        status = classify(obs, twin.site.ids).status
         good = np.flatnonzero(status == DECODABLE)
         if len(good) >= count:
             pick = np.sort(np.random.default_rng(seed).choice(good, count, replace=False))

@@ -1,10 +1,12 @@
 """The verification stage: is the plan decodable wherever the camera may be?
 
 For poses sampled over the working area (:func:`planner.windows.sample_poses`),
-each pose's window is found and keyed as the receiver reads it: IDs in
-counter-clockwise order plus the congruence class of the triangle. A pose is
-*covered* when it sees three non-collinear LEDs, and *ambiguous* when another set
-of luminaires has the same key (PRODUCT.md, "What decodable means").
+each pose's window is found and read as the receiver reads it: IDs in
+counter-clockwise order plus the shape of the triangle. A pose is *covered* when
+it sees three non-collinear LEDs, and *ambiguous* when another set of luminaires
+anywhere on the site reads the same (PRODUCT.md, "What decodable means"): every
+physical triple is searched (:mod:`planner.rivals`), not only the windows the
+sample produced. The statistics are those of a sample, and are labelled so.
 """
 
 from __future__ import annotations
@@ -13,14 +15,64 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Camera
-from .window_code import window_keys
+from .camera import Camera, Poses
+from .rivals import find_rivals, site_triples
+from .window_set import INSTALL_TOLERANCE_M, window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
     find_windows, sample_poses, working_area
 
 # Pose status codes, as in ``Verification.status``.
 DECODABLE, AMBIGUOUS, COLLINEAR, TOO_FEW = 0, 1, 2, 3
 STATUS_NAMES = ("decodable", "ambiguous", "collinear", "fewer than 3 LEDs seen")
+
+
+@dataclass(frozen=True)
+class WindowSetCheck:
+    """Every triangle that may be a window, checked against every triple of the site.
+
+    The triangles are those the empty-triangle rule allows (:mod:`planner.window_set`)
+    with sides up to ``max_side_m``; that bound comes from pose samples, so a clean
+    check is complete up to a sampled side bound, not a proof (docs/verification.md).
+    """
+
+    triangles: int
+    conflicts: list
+    max_side_m: float
+    install_tolerance_m: float
+    tolerance_m: float
+
+    def summary(self, names: list[str], limit: int = 5) -> dict:
+        return {
+            "rule": "empty triangle",
+            "max_side_m": round(self.max_side_m, 4),
+            "max_side_from": "pose samples",
+            "install_tolerance_m": self.install_tolerance_m,
+            "congruence_tolerance_m": self.tolerance_m,
+            "triangles": self.triangles,
+            "read_alike": len(self.conflicts),
+            "first_conflicts": [[[names[i] for i in t] for t in group] for group in self.conflicts[:limit]],
+            "proved": False,
+        }
+
+
+def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_side_m: float, *,
+                     tolerance_m: float = CONGRUENCE_TOLERANCE_M,
+                     install_tolerance_m: float = INSTALL_TOLERANCE_M) -> WindowSetCheck:
+    """Find, for every triangle the empty-triangle rule allows up to ``max_side_m``, the triples that read like it."""
+    tri = window_superset(xyz, radii, max_side_m, install_tolerance_m)
+    rivals: dict[int, list] = {}
+    for row, triple in find_rivals(tri, xyz, np.asarray(ids), tolerance_m):
+        rivals.setdefault(row, []).append(triple)
+    groups = sorted(([tuple(int(v) for v in tri[r])] + found for r, found in rivals.items()), key=lambda g: (-len(g), g))
+    return WindowSetCheck(len(tri), groups, max_side_m, install_tolerance_m, tolerance_m)
+
+
+def side_bound(ws: WindowSet, xyz: np.ndarray, tolerance_m: float) -> float:
+    """Longest side of the windows ``ws`` plus the tolerance [m]: the sampled side bound."""
+    if len(ws) == 0:
+        return 0.0
+    p = xyz[ws.windows]
+    return float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max()) + tolerance_m
 
 
 @dataclass(frozen=True)
@@ -36,7 +88,8 @@ class Verification:
     windows : WindowSet
         The distinct non-collinear windows seen.
     conflicts : list of list of tuple
-        Groups of windows (luminaire index triples) sharing one key, largest first.
+        A sampled window (luminaire index triple) followed by the triples of the site that read
+        like it, one group per such window, largest first.
     per_m2, seed, tolerance_m : float, int, float
         How the poses were sampled and how congruence was judged.
     """
@@ -48,6 +101,12 @@ class Verification:
     per_m2: float
     seed: int
     tolerance_m: float
+    window_set: WindowSetCheck | None = None
+
+    @property
+    def clean(self) -> bool:
+        """No sampled pose is ambiguous and no triangle of the window set reads like another triple."""
+        return not self.conflicts and not (self.window_set and self.window_set.conflicts)
 
     @property
     def poses(self) -> int:
@@ -65,6 +124,7 @@ class Verification:
         """The ``verification`` mapping of ``plan.yaml``."""
         covered = self.count(DECODABLE) + self.count(AMBIGUOUS)
         return {
+            "method": "sampled",
             "poses": self.poses,
             "poses_per_m2": self.per_m2,
             "seed": self.seed,
@@ -77,21 +137,8 @@ class Verification:
             "windows": len(self.windows),
             "conflicting_keys": len(self.conflicts),
             "first_conflicts": [[[names[i] for i in triple] for triple in group] for group in self.conflicts[:limit]],
+            "window_set": self.window_set.summary(names, limit) if self.window_set else None,
         }
-
-
-def conflict_groups(ws: WindowSet, ids: np.ndarray) -> tuple[list, np.ndarray]:
-    """Windows that share a key under ``ids`` (1-based): groups of triples, and a per-window flag."""
-    if len(ws) == 0:
-        return [], np.zeros(0, dtype=bool)
-    keys = window_keys(ws.windows, ws.shape, ws.symmetric, ids - 1, int(ids.max()))
-    uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
-    shared = counts[inverse] > 1
-    groups = {}
-    for m in np.flatnonzero(shared):
-        groups.setdefault(int(inverse[m]), []).append(tuple(int(v) for v in ws.windows[m]))
-    ordered = sorted(groups.values(), key=lambda g: (-len(g), g))
-    return ordered, shared
 
 
 @dataclass(frozen=True)
@@ -99,6 +146,7 @@ class Observation:
     """What the camera sees over one pose sample: geometry only, independent of the IDs.
 
     Computed once per sample and reused for every ID assignment checked on it.
+    ``site`` are the physical triples short enough to read like a sampled window.
     """
 
     position: np.ndarray
@@ -107,15 +155,46 @@ class Observation:
     per_m2: float
     seed: int
     tolerance_m: float
+    xyz: np.ndarray
+    site: np.ndarray
+
+
+def observe_poses(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera, *, per_m2: float, seed: int,
+                  tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Observation:
+    """Find each pose's window, and the site's triples that could read like one."""
+    pw = find_windows(poses, xyz, radii, camera)
+    ws = canonical_windows(pw.triples[pw.covered], xyz, tolerance_m)
+    if len(ws):
+        p = xyz[ws.windows]
+        longest = float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max())
+        site = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
+    else:
+        site = np.empty((0, 3), dtype=np.int64)
+    return Observation(poses.position, pw, ws, per_m2, seed, tolerance_m, xyz, site)
 
 
 def observe(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, *, per_m2: float = POSES_PER_M2,
             seed: int = 0, tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Observation:
     """Sample poses over the working area and find each pose's window."""
     poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
-    pw = find_windows(poses, xyz, radii, camera)
-    ws = canonical_windows(pw.triples[pw.covered], xyz, tolerance_m)
-    return Observation(poses.position, pw, ws, per_m2, seed, tolerance_m)
+    return observe_poses(poses, xyz, radii, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+
+
+def conflict_groups(obs: Observation, ids: np.ndarray) -> tuple[list, np.ndarray]:
+    """Sampled windows that some other triple of the site reads like under ``ids``.
+
+    Returns the groups (window first, then its rivals; largest first) and a per-window flag.
+    """
+    ws = obs.windows
+    shared = np.zeros(len(ws), dtype=bool)
+    rivals: dict[int, list] = {}
+    for row, triple in find_rivals(ws.windows, obs.xyz, np.asarray(ids), obs.tolerance_m, site=obs.site):
+        rivals.setdefault(row, []).append(triple)
+    groups = []
+    for row, found in rivals.items():
+        shared[row] = True
+        groups.append([tuple(int(v) for v in ws.windows[row])] + found)
+    return sorted(groups, key=lambda g: (-len(g), g)), shared
 
 
 def classify(obs: Observation, ids: np.ndarray) -> Verification:
@@ -125,7 +204,7 @@ def classify(obs: Observation, ids: np.ndarray) -> Verification:
     status[pw.collinear] = COLLINEAR
     covered = pw.covered
     status[covered] = DECODABLE
-    groups, shared = conflict_groups(obs.windows, np.asarray(ids))
+    groups, shared = conflict_groups(obs, np.asarray(ids))
     if shared.any():
         bad = {tuple(sorted(w)) for w in obs.windows.windows[shared].tolist()}
         idx = np.flatnonzero(covered)

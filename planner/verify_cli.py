@@ -1,8 +1,8 @@
 """``vlp-verify PLAN``: verify an existing (perhaps hand-edited) plan.
 
-Exit codes: 0 every sampled pose that sees a window decodes uniquely; 3 some pose
-is ambiguous (the first conflicting luminaire triples are named); 1 bad input;
-2 usage.
+Exit codes: 0 every sampled pose that sees a window decodes uniquely and no
+triangle that may be a window reads like another triple of the site; 3 otherwise
+(the first conflicting luminaire triples are named); 1 bad input; 2 usage.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,8 @@ from . import cli
 from .camera import Camera
 from .errors import UsageError
 from .plan import load_plan
-from .verify import verify_plan
+from .verify import check_window_set, side_bound, verify_plan
+from .window_set import INSTALL_TOLERANCE_M
 
 EXIT_AMBIGUOUS = 3
 
@@ -26,9 +28,11 @@ EXIT_AMBIGUOUS = 3
 def build_parser() -> argparse.ArgumentParser:
     p = cli._Parser(
         prog="vlp-verify",
-        description="Verify a plan.yaml: sample camera poses over the site and check that every window "
-        "(the three LEDs the camera uses) names exactly one place.",
-        epilog="Exit codes: 0 decodable everywhere sampled, 3 ambiguous poses found, 1 bad input, 2 usage error.",
+        description="Verify a plan.yaml: sample camera poses over the site, and find every triangle of luminaires "
+        "that may be a window (the three LEDs the camera uses); check that each names exactly one place, "
+        "against every other triple of the site.",
+        epilog="Exit codes: 0 decodable everywhere sampled and no triangle that may be a window reads like another "
+        "triple, 3 otherwise, 1 bad input, 2 usage error.",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
     cli._add_verify_flags(p)
@@ -51,6 +55,13 @@ def main(argv: list[str] | None = None) -> int:
     camera = cli._camera(args) if args.camera else Camera.from_dict(doc.get("camera") or {})
     result = verify_plan(xyz, radii, ids, doc.get("outline"), camera, per_m2=args.poses_per_m2, seed=args.seed,
                          tolerance_m=args.tolerance)
+    recorded = (doc.get("verification") or {}).get("window_set") or {}
+    install = args.install_tolerance if args.install_tolerance is not None else \
+        float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
+    # The triangles are found anew from the luminaires; only the sampled side bound may come from the plan.
+    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0)))
+    result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
+                                                         install_tolerance_m=install))
     summary = result.summary([e["name"] for e in lums], limit=10)
     if args.map:
         _write_map(doc, args.plan, xyz, radii, ids, camera, result, Path(args.map))
@@ -58,9 +69,9 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(summary, indent=2))
     else:
         print(f"vlp-verify: {args.plan}: {cli._verification_line(summary)}")
-        for group in summary["first_conflicts"]:
+        for group in summary["first_conflicts"] + summary["window_set"]["first_conflicts"]:
             print("  same key: " + " = ".join("(" + ", ".join(t) + ")" for t in group))
-    return EXIT_AMBIGUOUS if result.conflicts else 0
+    return 0 if result.clean else EXIT_AMBIGUOUS
 
 
 def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> None:

@@ -4,7 +4,9 @@ A window (PRODUCT.md, "What decodable means") is three luminaires read as their
 labels in counter-clockwise order plus the shape of their triangle. Its *key* is
 ``(shape, L[w0], L[w1], L[w2])``, or for a 3-fold symmetric (equilateral) shape
 the smallest cyclic rotation of the three labels. A labelling with ``K`` labels is
-valid when all keys differ. Labels are found by local search (vectorised
+valid when all keys differ. Triples may also be *passive* (``active`` False): other
+luminaire triples of the site that a window must not read like, but that need not
+differ from each other, since no camera uses them as a window. Labels are found by local search (vectorised
 min-conflicts repair sweeps, then a focused heat-bath search with incremental key counts) and,
 for small sites, OR-Tools CP-SAT, which can also prove a bit width infeasible.
 Everything is deterministic given the seed: budgets are steps, never seconds.
@@ -24,6 +26,13 @@ LS_STEPS_PER_SECOND = 5000
 """Local-search steps granted per second of ``time_budget`` (5-15k steps/s measured, by K and degree)."""
 TEMPERATURE = 0.6
 """Heat-bath temperature [conflicting pairs]: 0.6-0.7 suits K = 16 (16 x 32 L windows), 0.5 K = 32."""
+STEP_WORK = 256 * 32
+"""Candidate keys per luminaire (degree x labels) up to which a focused step counts as one step."""
+HOPELESS_SHARE = 0.1
+"""With passive triples, widths start where random labels would leave conflicting pairs
+under this share of the windows (expected pairs: those sharing a shape over K^3)."""
+HOPELESS_MIN = 100
+"""... or under this many pairs: small problems try every width from the counting bound."""
 _SWEEP_CHUNK = 1 << 21
 """Candidate codes evaluated at once in a repair sweep (memory ~ 16 bytes each)."""
 
@@ -45,6 +54,29 @@ class WindowCode:
     lower_bound_bits: int
     method: str
     optimal: bool
+
+
+def _active(active, m: int) -> np.ndarray:
+    """The per-triple active flags (all True when not given)."""
+    if active is None:
+        return np.ones(m, dtype=bool)
+    a = np.asarray(active, dtype=bool).reshape(-1)
+    if len(a) != m:
+        raise ValueError(f"{m} windows but {len(a)} active flags")
+    return a
+
+
+def _pairs(codes: np.ndarray, act: np.ndarray) -> tuple[int, np.ndarray]:
+    """Conflicting pairs (two active triples, or one active and one passive, with one key)
+    and the per-triple flag 'in such a pair'."""
+    if len(codes) == 0:
+        return 0, np.zeros(0, dtype=bool)
+    _, inv = np.unique(codes, return_inverse=True)
+    inv = inv.reshape(-1)
+    a = np.bincount(inv, weights=act).astype(np.int64)
+    p = np.bincount(inv) - a
+    pairs = int((a * (a - 1) // 2 + a * p).sum())
+    return pairs, np.where(act, (a[inv] >= 2) | (p[inv] >= 1), a[inv] >= 1)
 
 
 def _arrays(windows, shape, symmetric) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -88,17 +120,16 @@ def window_keys(windows, shape, symmetric, labels, K: int) -> np.ndarray:
     return np.unique(np.column_stack([s, triple]), axis=0, return_inverse=True)[1].reshape(-1)  # ranks
 
 
-def count_conflicts(windows, shape, symmetric, labels, K: int) -> int:
-    """Number of conflicting window pairs (0 iff the labelling is valid)."""
-    _, c = np.unique(window_keys(windows, shape, symmetric, labels, K), return_counts=True)
-    return int((c * (c - 1) // 2).sum())
-
-
-def conflicting_windows(windows, shape, symmetric, labels, K: int) -> np.ndarray:
-    """Indices (ascending) of the windows whose key another window shares."""
+def count_conflicts(windows, shape, symmetric, labels, K: int, active=None) -> int:
+    """Number of conflicting pairs (0 iff the labelling is valid); passive pairs do not count."""
     codes = window_keys(windows, shape, symmetric, labels, K)
-    _, inv, cnt = np.unique(codes, return_inverse=True, return_counts=True)
-    return np.flatnonzero(cnt[inv] >= 2)
+    return _pairs(codes, _active(active, len(codes)))[0]
+
+
+def conflicting_windows(windows, shape, symmetric, labels, K: int, active=None) -> np.ndarray:
+    """Indices (ascending) of the triples in a conflicting pair."""
+    codes = window_keys(windows, shape, symmetric, labels, K)
+    return np.flatnonzero(_pairs(codes, _active(active, len(codes)))[1])
 
 
 def _labels_for(count: int, symmetric: bool) -> int:
@@ -109,9 +140,10 @@ def _labels_for(count: int, symmetric: bool) -> int:
     return k
 
 
-def lower_bound_labels(shape, symmetric) -> int:
-    """Counting bound: each shape class needs as many keys as it has windows (at least 1)."""
+def lower_bound_labels(shape, symmetric, active=None) -> int:
+    """Counting bound: each shape class needs as many keys as it has active windows (at least 1)."""
     s = np.asarray(shape, dtype=np.int64).reshape(-1)
+    s = s[_active(active, len(s))]
     sym = np.asarray(symmetric, dtype=bool).reshape(-1)
     counts = np.bincount(s, minlength=len(sym)) if len(s) else np.zeros(len(sym), np.int64)
     return max([1] + [_labels_for(int(c), bool(sym[i])) for i, c in enumerate(counts) if c])
@@ -149,8 +181,9 @@ class _Problem:
     """Windows and their incidence: for luminaire u, the windows through it (``inc_w``, padded
     with the dummy window M whose code is -1) and u's position in each (``inc_p``)."""
 
-    def __init__(self, n: int, windows, shape, symmetric, K: int):
+    def __init__(self, n: int, windows, shape, symmetric, K: int, active=None):
         w, s, sym = _arrays(windows, shape, symmetric)
+        self.act = np.append(_active(active, len(w)), False)
         n, K = int(n), int(K)
         self.n, self.K, self.M = n, K, len(w)
         self.size = (int(s.max(initial=0)) + 1) * K ** 3
@@ -198,35 +231,44 @@ class _Problem:
             best = cand if best is None else np.where(sym[..., None], np.minimum(best, cand), best)
         return np.where((wi < self.M)[..., None], best + self.off[wi][..., None], -1)
 
+    def in_conflict(self, m: int, code: int, A: "_Counts", P: "_Counts") -> bool:
+        """Triple ``m`` (at key ``code``) shares its key with an active triple, or is active and
+        shares it with any triple."""
+        a = A.get(code) - int(self.act[m])
+        return a >= 1 or (bool(self.act[m]) and P.get(code) >= 1)
+
 
 def _sweeps(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_sweeps: int = 60) -> int:
     """Vectorised repair while conflicts fall fast; leaves the best labels in ``lab``, returns its pairs."""
     best_lab, best, prev = lab.copy(), None, None
+    act = prob.act[:-1]
     for _ in range(max_sweeps + 1):
         codes = prob.codes(lab)
-        uniq, inv, cnts = np.unique(codes[:-1], return_inverse=True, return_counts=True)
-        pairs = int((cnts * (cnts - 1) // 2).sum())
+        pairs, hot = _pairs(codes[:-1], act)
         if best is None or pairs < best:
             best, best_lab = pairs, lab.copy()
         if pairs == 0 or (prev is not None and pairs > 0.8 * prev):
             break
         prev = pairs
-        conf = rng.permutation(np.flatnonzero(cnts[inv] >= 2))
+        conf = rng.permutation(np.flatnonzero(hot))
         _, keep = np.unique(codes[conf], return_index=True)
-        move = np.delete(conf, keep)  # all but one window of each shared key
+        move = np.delete(conf, keep)  # all but one triple of each shared key
         us = np.unique(prob.w[move, rng.integers(0, 3, len(move))])
         step = max(1, _SWEEP_CHUNK // (prob.inc_w.shape[1] * prob.K))
-        dense = np.bincount(codes[:-1], minlength=prob.size + 1) if prob.size <= DENSE_MAX else None
+        uniq, inv = np.unique(codes[:-1], return_inverse=True)
+        inv = inv.reshape(-1)
+        n_act = np.bincount(inv, weights=act, minlength=len(uniq)).astype(np.int64)
+        n_pas = np.bincount(inv, minlength=len(uniq)) - n_act
         new = np.empty(len(us), np.int64)
         for a in range(0, len(us), step):  # each luminaire's best label against the snapshot
             chunk = us[a:a + step]
             C = prob.candidates(lab, codes, chunk)
-            if dense is not None:
-                cnt = dense[C]
-            else:
-                idx = np.minimum(np.searchsorted(uniq, C), len(uniq) - 1)
-                cnt = np.where(uniq[idx] == C, cnts[idx], 0)
-            cnt -= C == codes[prob.inc_w[chunk]][..., None]
+            idx = np.minimum(np.searchsorted(uniq, C), len(uniq) - 1)
+            found = uniq[idx] == C
+            slot_act = prob.act[prob.inc_w[chunk]][..., None]
+            # an active slot pairs with every other triple of its key, a passive one with the active ones
+            cnt = np.where(found, n_act[idx] + slot_act * n_pas[idx], 0)
+            cnt -= slot_act & (C == codes[prob.inc_w[chunk]][..., None])
             cost = cnt.sum(axis=1) + rng.random((len(chunk), prob.K)) * 0.5
             new[a:a + step] = cost.argmin(axis=1)
         lab[us] = new
@@ -242,20 +284,19 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
     three luminaires by the change in conflicting pairs (exact, from incremental key
     counts) and draws one move with probability ``exp(-delta / temperature)``.
     """
-    K, w = prob.K, prob.w
+    K, w, act = prob.K, prob.w, prob.act
     codes = prob.codes(lab)
-    counts = _Counts(codes[:-1], prob.size)
-    _, inv, c = np.unique(codes[:-1], return_inverse=True, return_counts=True)
-    pairs = int((c * (c - 1) // 2).sum())
-    listed = c[inv] >= 2
-    todo = np.flatnonzero(listed).tolist()  # holds all but at most one window of each shared key
+    A = _Counts(codes[:-1][act[:-1]], prob.size)  # key counts of the active triples
+    P = _Counts(codes[:-1][~act[:-1]], prob.size)  # and of the passive ones
+    pairs, listed = _pairs(codes[:-1], act[:-1])
+    todo = np.flatnonzero(listed).tolist()  # holds every triple in a conflicting pair
     best, best_lab = pairs, lab.copy()
     three = np.arange(3)
     step = 0
     while pairs > 0 and step < max_steps and todo:
         j = int(rng.integers(len(todo)))
         m = todo[j]
-        if counts.get(int(codes[m])) < 2:  # resolved meanwhile: drop lazily
+        if not prob.in_conflict(m, int(codes[m]), A, P):  # resolved meanwhile: drop lazily
             todo[j] = todo[-1]
             todo.pop()
             listed[m] = False
@@ -267,9 +308,17 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
         # pairs each label would put u's windows in: others sharing the key (u's own windows
         # move, so their current keys do not count) plus repeats among u's windows; the pads'
         # terms are the same for every label and cancel in delta
-        cost = counts.many(C) - (C[..., None] == codes[wi][:, None, None, :]).sum(-1)
-        Cs = np.sort(C, axis=1)
-        cost = cost.sum(axis=1) + (Cs[:, 1:] == Cs[:, :-1]).sum(axis=1)
+        others_a, others_p = A.many(C), P.many(C)
+        for i in range(3):  # minus u's own windows now at each candidate key (sorted look-up)
+            for counts, mine in ((others_a, act[wi[i]]), (others_p, ~act[wi[i]])):
+                now_at = np.sort(codes[wi[i]][mine])
+                counts[i] -= np.searchsorted(now_at, C[i], "right") - np.searchsorted(now_at, C[i], "left")
+        slot_act = act[wi][..., None]
+        cost = (others_a + slot_act * others_p).sum(axis=1)
+        order = np.argsort(C, axis=1)
+        Cs = np.take_along_axis(C, order, axis=1)
+        As = np.take_along_axis(np.broadcast_to(slot_act, C.shape), order, axis=1)
+        cost = cost + ((Cs[:, 1:] == Cs[:, :-1]) & (As[:, 1:] | As[:, :-1])).sum(axis=1)
         now = lab[us]
         delta = cost - cost[three, now][:, None]
         weight = np.exp((delta.min() - delta) / temperature).ravel()
@@ -280,11 +329,17 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
         u = int(us[i])
         lab[u] = k
         for m2, new in zip(wi[i, :prob.deg[u]].tolist(), C[i, :prob.deg[u], k].tolist()):
-            pairs -= counts.add(int(codes[m2]), -1)
-            after = counts.add(new, 1)
-            pairs += after - 1
+            old = int(codes[m2])
+            if act[m2]:
+                pairs -= A.add(old, -1) + P.get(old)
+                pairs += A.get(new) + P.get(new)
+                A.add(new, 1)
+            else:
+                P.add(old, -1)
+                pairs += A.get(new) - A.get(old)
+                P.add(new, 1)
             codes[m2] = new
-            if after >= 2 and not listed[m2]:
+            if prob.in_conflict(m2, new, A, P) and not listed[m2]:
                 listed[m2] = True
                 todo.append(m2)
         if pairs < best:
@@ -294,6 +349,9 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
 
 
 def _local_search(prob: _Problem, lab: np.ndarray, seed: int, max_steps: int) -> int:
+    # A focused step scores 3 x D x K candidate keys: on problems with many passive triples
+    # per luminaire, fewer steps keep the work (not the time) of the search bounded.
+    max_steps = int(max_steps * min(1.0, STEP_WORK / (prob.inc_w.shape[1] * prob.K)))
     rng = np.random.default_rng(seed)
     pairs = _sweeps(prob, lab, rng) if prob.M else 0
     if pairs and max_steps > 0:
@@ -302,23 +360,23 @@ def _local_search(prob: _Problem, lab: np.ndarray, seed: int, max_steps: int) ->
 
 
 def search_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0,
-                  max_steps: int = 100_000) -> np.ndarray | None:
+                  max_steps: int = 100_000, active=None) -> np.ndarray | None:
     """A valid labelling with labels 0..K-1 by local search from random labels, or None.
 
     ``max_steps`` bounds the focused-search steps (after at most 60 repair sweeps).
     """
-    prob = _Problem(n, windows, shape, symmetric, K)
+    prob = _Problem(n, windows, shape, symmetric, K, active)
     lab = np.random.default_rng([seed, 1]).integers(0, K, n).astype(np.int64)
     return lab if _local_search(prob, lab, seed, max_steps) == 0 else None
 
 
 def repair_labels(labels, n: int, windows, shape, symmetric, K: int, *, seed: int = 0,
-                  max_steps: int = 100_000) -> np.ndarray | None:
+                  max_steps: int = 100_000, active=None) -> np.ndarray | None:
     """Continue the local search from ``labels`` (e.g. after new windows were found), or None."""
     lab = np.array(labels, dtype=np.int64).reshape(-1)
     if len(lab) != n or (n and (lab.min() < 0 or lab.max() >= K)):
         raise ValueError(f"labels must be {n} values in 0..{K - 1}")
-    prob = _Problem(n, windows, shape, symmetric, K)
+    prob = _Problem(n, windows, shape, symmetric, K, active)
     return lab if _local_search(prob, lab, seed, max_steps) == 0 else None
 
 
@@ -373,7 +431,7 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
 
 
 def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time_budget: float = 10.0,
-                       cpsat_max_windows: int = 3000) -> WindowCode:
+                       cpsat_max_windows: int = 3000, active=None) -> WindowCode:
     """Fewest bits (``K = 2**bits`` labels) with all window keys distinct; deterministic.
 
     From the counting bound upwards, each bit width gets local search
@@ -381,24 +439,34 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
     ``cpsat_max_windows`` windows, CP-SAT for ``time_budget`` deterministic seconds,
     hinted with the local search's best labels; CP-SAT also proves widths infeasible.
     Distinct labels for every luminaire always work, so the loop ends once ``K >= n``.
+    With passive triples CP-SAT is not run (its model would have to treat them as
+    windows: a stricter problem, which proves nothing); widths where random labels would leave many times
+    more conflicts than windows are skipped (``HOPELESS_SHARE``), so such a result is
+    called optimal only when it meets the counting bound.
     """
     w, s, _ = _arrays(windows, shape, symmetric)
-    if len(np.unique(np.column_stack([s, np.sort(w, axis=1)]), axis=0)) < len(w):
+    act = _active(active, len(w))  # passive triples may repeat, in other readings
+    if len(np.unique(np.column_stack([s, np.sort(w, axis=1)])[act], axis=0)) < act.sum():
         raise ValueError("two windows of one shape hold the same three luminaires")
-    lb = lower_bound_labels(s, symmetric)
+    lb = lower_bound_labels(s, symmetric, act)
     lbb = max(1, (lb - 1).bit_length())  # ceil(log2 lb), at least 1
     steps = int(LS_STEPS_PER_SECOND * time_budget)
     proved_below = wall_stopped = False
-    for b in range(lbb, 64):
+    start = lbb
+    if not act.all():  # skip widths where random labels would leave far more conflicts than windows
+        same = _pairs(s, act)[0]  # pairs that share a shape, whatever the labels
+        while same / 8 ** start > max(HOPELESS_SHARE * act.sum(), HOPELESS_MIN):
+            start += 1
+    for b in range(start, 64):
         K = 2 ** b
         if (int(s.max(initial=0)) + 1) * K ** 3 >= 2 ** 62:  # keys overflow: only absurd shape counts
             b = max(b, (n - 1).bit_length())
             return WindowCode(np.arange(n, dtype=np.int64), 2 ** b, b, lb, lbb, "distinct labels", False)
         lab = np.random.default_rng([seed, b]).integers(0, K, n).astype(np.int64)
         method, proved = "local search", False
-        if _local_search(_Problem(n, w, s, symmetric, K), lab, seed, steps) > 0:
+        if _local_search(_Problem(n, w, s, symmetric, K, act), lab, seed, steps) > 0:
             hint, lab = lab, None
-            if len(w) <= cpsat_max_windows and time_budget > 0:
+            if len(w) <= cpsat_max_windows and time_budget > 0 and act.all():
                 method = "CP-SAT"
                 lab, proved, wall = cpsat_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=hint)
                 wall_stopped |= wall

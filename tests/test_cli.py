@@ -123,8 +123,12 @@ def test_json_summary_is_machine_readable(tmp_path):
     result = run([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json"], cwd=ROOT)
     assert result.returncode == 0
     summary = json.loads(result.stdout)
-    assert summary["schemes_considered"]["paper"] == {"bits": 4, "ambiguous_poses": 0}
-    assert summary["verification"]["ambiguous"] == 0
+    paper, window = summary["schemes_considered"]["paper"], summary["schemes_considered"]["window"]
+    assert (paper["bits"], paper["ambiguous_poses"]) == (4, 0)
+    assert paper["window_set_conflicts"] > 0  # the pair rule leaves some triangle that may be a window
+    assert (window["bits"], window["ambiguous_poses"], window["window_set_conflicts"]) == (3, 0, 0)
+    assert summary["scheme"] == "window" and summary["verification"]["ambiguous"] == 0
+    assert summary["verification"]["method"] == "sampled" and summary["verification"]["window_set"]["read_alike"] == 0
 
 
 @pytest.mark.parametrize("make,message", [
@@ -165,14 +169,17 @@ def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_
     k = np.arange(256)
     pts = 0.5 * (np.stack([k % 16, k // 16], 1) + rng.uniform(-0.3, 0.3, (256, 2)))
     layout = write(tmp_path, "jitter.csv", "x,y\n" + "".join(f"{x:.4f},{y:.4f}\n" for x, y in pts))
+    # The pair rule protects neighbouring pairs; here some triangle that may be a window reads like another.
     result = run([str(layout), "-o", str(tmp_path / "out"), "--scheme", "paper"], cwd=ROOT)
     assert result.returncode == 3, result.stderr
-    assert "sampled poses are ambiguous under the paper scheme" in result.stderr
+    assert "may be windows read like other luminaires under the paper scheme" in result.stderr
     plan = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
-    assert plan["verification"]["ambiguous"] > 0 and plan["verification"]["first_conflicts"]
+    w = plan["verification"]["window_set"]
+    assert w["read_alike"] > 0 and w["first_conflicts"] and not w["proved"]
     auto = run([str(layout), "-o", str(tmp_path / "auto"), "--json"], cwd=ROOT)
     assert auto.returncode == 0  # auto keeps a scheme that verifies
-    assert json.loads(auto.stdout)["verification"]["ambiguous"] == 0
+    v = json.loads(auto.stdout)["verification"]
+    assert v["ambiguous"] == 0 and v["window_set"]["read_alike"] == 0
 
 
 def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path):

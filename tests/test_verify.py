@@ -1,5 +1,7 @@
 """Verification: windows, keys, coverage, and vlp-verify on real plans."""
 
+import itertools
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +16,9 @@ from planner.camera import Camera, Poses, project_discs, rotation_from_angles
 from planner.graph import build_graph
 from planner.verify import AMBIGUOUS, DECODABLE, verify_plan
 from planner.window_code import window_keys
+from planner.rivals import find_rivals
 from planner.window_scheme import assign_window
+from planner.window_set import window_superset
 from planner.windows import canonical_windows, find_windows, sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -93,16 +97,30 @@ def test_window_scheme_plans_never_share_a_key(rows, cols, jitter, seed):
     assignment, check = assign_window(xyz, radii, None, build_graph(xy), Camera(), seed=seed, time_budget=1.0,
                                       per_m2=150)
     assert check.conflicts == []
-    ws = check.windows
-    keys = window_keys(ws.windows, ws.shape, ws.symmetric, assignment.ids - 1, int(assignment.ids.max()))
-    assert len(np.unique(keys)) == len(keys)
-    # and on an independent pose sample too, for lattices surveyed to +-5 cm. Beyond that the set of
-    # windows grows with the sampling density (54 luminaires jittered by 10 cm: 215 windows at 2,000
-    # poses/m2, 335 at 80,000) and a window no sample produced is not protected: found by this test
-    # (rows 6, cols 9, jitter 0.1016, seed 10: 26 of 1,674 poses ambiguous); docs/schemes.md.
-    if jitter <= 0.05:
-        again = verify_plan(xyz, radii, assignment.ids, None, Camera(), per_m2=150, seed=seed + 7)
-        assert again.count(AMBIGUOUS) <= 0.01 * again.poses
+    # By brute force: no sampled window reads like any other triple of the site.
+    ids, tol = assignment.ids, check.tolerance_m
+    every = np.array(list(itertools.combinations(range(len(xy)), 3)))
+    for w in check.windows.windows:
+        for r in range(3):
+            v = np.roll(w, -r)
+            same_ids = (ids[every] == ids[v]).all(axis=1)
+            for u in every[same_ids]:
+                if set(u) == set(w):
+                    continue
+                for order in (u, u[[0, 2, 1]]):  # u in the orientation and rotation matching v
+                    for q in range(3):
+                        o = np.roll(order, -q)
+                        if (ids[o] == ids[v]).all() and ccw(o, xy) and ccw(v, xy):
+                            sides = lambda t: np.linalg.norm(xy[np.roll(t, -1)] - xy[t], axis=1)
+                            assert np.abs(sides(o) - sides(v)).max() > tol, (w, o)
+    # and on an independent pose sample too: the window set protects what no sample produced
+    again = verify_plan(xyz, radii, assignment.ids, None, Camera(), per_m2=150, seed=seed + 7)
+    assert again.count(AMBIGUOUS) == 0
+
+
+def ccw(t, xy) -> bool:
+    a, b, c = xy[t]
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0
 
 
 def plan_cli(args, cwd=ROOT):
@@ -160,3 +178,50 @@ def test_working_area_is_the_hull_without_an_outline():
     assert abs(len(poses) - 300) <= 1
     assert np.all((poses.position[:, 2] >= 0.5) & (poses.position[:, 2] <= 1.5))
     assert np.all(poses.tilt_rad <= np.radians(40) + 1e-12)
+
+
+def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
+    out = tmp_path / "out"
+    made = plan_cli(["planner.cli", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-report",
+                     "--no-firmware", "--no-map"])
+    assert made.returncode == 0, made.stderr
+    doc = yaml.safe_load((out / "plan.yaml").read_text())
+    lums = doc["luminaires"]
+    xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums])
+    radii = np.array([e["radius"] for e in lums])
+    ids = np.array([e["id"] for e in lums])
+    cam = Camera.from_dict(doc["camera"])
+    sampled = set()
+    for seed in range(3):  # what default samples produce: the planner's and vlp-verify's seeds
+        ws = verify_plan(xyz, radii, ids, doc["outline"], cam, seed=seed).windows
+        sampled |= {frozenset(t) for t in ws.windows.tolist()}
+    bound = doc["verification"]["window_set"]["max_side_m"]
+    unsampled = [t for t in window_superset(xyz, radii, bound, 0.03).tolist() if frozenset(t) not in sampled]
+    assert unsampled
+    # A triple shaped like an unsampled window, whose IDs differ from it in one place: make them equal.
+    clash = None
+    side = lambda x: np.linalg.norm(xyz[np.roll(x, -1)] - xyz[x], axis=1)
+    for a, u in find_rivals(np.array(unsampled), xyz, np.ones(len(lums), np.int64), 0.01):
+        for r in range(3):
+            t = np.roll(rivals_ccw(unsampled[a], xyz), -r)
+            diff = [k for k in range(3) if ids[t[k]] != ids[u[k]]]
+            if np.abs(side(t) - side(np.array(u))).max() <= 0.01 and len(diff) == 1 and not set(t) & set(u):
+                clash = (t.tolist(), list(u), diff[0])
+                break
+        if clash:
+            break
+    assert clash is not None
+    t, u, k = clash
+    lums[u[k]]["id"] = int(ids[t[k]])
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(doc, sort_keys=False))
+    result = subprocess.run(["vlp-verify", str(bad), "--json"], capture_output=True, text=True)
+    assert result.returncode == 3, result.stdout + result.stderr
+    w = json.loads(result.stdout)["window_set"]
+    window, rival = ({lums[i]["name"] for i in x} for x in (t, u))
+    assert any(window in [set(x) for x in g] and rival in [set(x) for x in g] for g in w["first_conflicts"])
+
+
+def rivals_ccw(t, xyz):
+    a, b, c = (xyz[v] for v in t)
+    return list(t) if (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) >= 0 else [t[0], t[2], t[1]]

@@ -227,3 +227,39 @@ def test_bad_input():
         assign_window_code(3, [(0, 1, 2), (1, 2, 0)], [0, 0], [True])
     with pytest.raises(ValueError):
         search_labels(2, [(0, 1, 2)], [0], [False], 2)
+
+
+def ref_passive_pairs(windows, shape, symmetric, labels, active):
+    """Pairs of triples with one key where at least one is active, by brute force."""
+    keys = [ref_key(win, shape[m], symmetric, labels) for m, win in enumerate(windows)]
+    return sum(1 for a, b in itertools.combinations(range(len(keys)), 2)
+               if keys[a] == keys[b] and (active[a] or active[b]))
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(instances(), st.integers(1, 4), st.integers(0, 60), st.integers(0, 3), st.data())
+def test_passive_triples_pair_only_with_active_ones(inst, K, steps, seed, data):
+    n, w, shape, sym = inst
+    active = np.array(data.draw(st.lists(st.booleans(), min_size=len(w), max_size=len(w))))
+    labels = np.random.default_rng(seed).integers(0, K, n)
+    assert count_conflicts(w, shape, sym, labels, K, active) == ref_passive_pairs(w, shape, sym, labels, active)
+    hot = conflicting_windows(w, shape, sym, labels, K, active).tolist()
+    keys = [ref_key(win, shape[m], sym, labels) for m, win in enumerate(w)]
+    assert hot == [m for m in range(len(w)) if any(keys[m] == keys[o] and (active[m] or active[o])
+                                                   for o in range(len(w)) if o != m)]
+    pairs = wc._focused_search(wc._Problem(n, w, shape, sym, K, active), labels, np.random.default_rng(seed), steps)
+    assert pairs == count_conflicts(w, shape, sym, labels, K, active)  # the incremental count stays exact
+
+
+def test_passive_triples_need_fewer_labels_than_windows():
+    # One shape: 2 windows and 30 passive triples through luminaires 0..5. With K = 2 labels
+    # 8 keys exist, so 32 windows could never be distinct; 2 windows avoiding 30 passives can.
+    rng = np.random.default_rng(0)
+    w = np.array([(0, 1, 2), (3, 4, 5)] + [tuple(rng.choice(np.arange(6, 40), 3, replace=False)) for _ in range(30)])
+    w = w[np.unique(np.sort(w, axis=1), axis=0, return_index=True)[1]]
+    active = np.array([set(t) <= set(range(6)) for t in w.tolist()])
+    shape, sym = np.zeros(len(w), int), np.array([False])
+    code = assign_window_code(40, w, shape, sym, seed=0, time_budget=1, active=active)
+    assert count_conflicts(w, shape, sym, code.labels, code.K, active) == 0
+    assert code.bits == 1 and lower_bound_labels(shape, sym, active) == 2
+    assert count_conflicts(w, shape, sym, code.labels, code.K) > 0  # passives do share keys among themselves

@@ -1,0 +1,82 @@
+"""The window set: every triple of the site that passes a proved necessary condition for a window.
+
+**Empty-triangle rule.** If three LEDs ``a, b, c`` are a window at some pose, no other
+LED of the same height and no larger disc lies in their closed triangle. Proof: such
+an LED's disc lies in the convex hull of the three discs, whose image (a convex set:
+the hull is in front of the camera) lies in the image, so it is wholly in view; and
+the ceiling points whose image is within a distance of the image centre fill an
+ellipse (a plane section of the cone of those rays, bounded while the largest tilt
+plus the corner angle stays under 90 deg), so by strict convexity that LED is nearer
+the image centre than the farthest of ``a, b, c``: the paper's rule would have taken
+it. With luminaires installed up to ``d`` from the drawing, an edge line moves by at
+most ``d`` at its ends and the LED by ``d``, so only LEDs deeper than ``2 d`` inside
+every edge of the drawn triangle are sure to be inside the installed one.
+
+The rule says nothing about long triangles: the set is bounded by a side length,
+which for now is taken from a dense pose sample (the longest window it found plus a
+margin), so the set is complete only up to that sampled bound (docs/verification.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .camera import Camera
+from .rivals import site_triples
+from .windows import MIN_FLATNESS, flatness
+
+NEIGHBOURS = 32
+"""LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
+
+INSTALL_TOLERANCE_M = 0.03
+"""Default distance by which an installed luminaire may lie from its drawn position [m]."""
+
+SAME_HEIGHT_M = 1e-3
+"""LEDs whose heights differ by less than this count as one ceiling plane [m]."""
+
+
+def rule_holds(camera: Camera) -> bool:
+    """The ellipse argument needs every ray in view to meet the ceiling: tilt + corner angle < 90 deg."""
+    corner = math.atan(math.hypot(max(camera.cx_px, camera.width_px - camera.cx_px) / camera.fx_px,
+                                  max(camera.cy_px, camera.height_px - camera.cy_px) / camera.fy_px))
+    return camera.max_tilt_rad + corner < math.pi / 2
+
+
+def empty_triangles(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> np.ndarray:
+    """Which ``triples`` (T x 3 luminaire indices) hold no other LED that forbids them as a window."""
+    triples = np.asarray(triples, dtype=np.int64).reshape(-1, 3)
+    if len(triples) == 0 or len(xyz) <= 3:
+        return np.ones(len(triples), dtype=bool)
+    xy = xyz[:, :2]
+    k = min(NEIGHBOURS + 3, len(xy))
+    _, near = cKDTree(xy).query(xy[triples].mean(axis=1), k=k)
+    near = near.reshape(len(triples), k)
+    p = xy[triples]  # (T, 3, 2)
+    q = xy[near]  # (T, k, 2)
+    cross = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+    orient = np.where(cross >= 0, 1.0, -1.0)[:, None]
+    margin = 2.0 * install_tolerance_m  # 0: the closed triangle (an LED on an edge is nearer too)
+    inside = np.ones(near.shape, dtype=bool)
+    for s in range(3):  # signed distance from each edge line, positive towards the triangle
+        a, b = p[:, s], p[:, (s + 1) % 3]
+        edge = b - a
+        length = np.linalg.norm(edge, axis=1)[:, None]
+        dist = orient * (edge[:, None, 0] * (q[..., 1] - a[:, None, 1]) - edge[:, None, 1] * (q[..., 0] - a[:, None, 0]))
+        inside &= dist >= margin * np.maximum(length, 1e-12)
+    member = (near[:, :, None] == triples[:, None, :]).any(axis=2)
+    coplanar = (np.abs(xyz[near, 2] - xyz[triples, 2].min(axis=1)[:, None]) < SAME_HEIGHT_M) \
+        & (np.ptp(xyz[triples, 2], axis=1) < SAME_HEIGHT_M)[:, None]
+    small = radii[near] <= radii[triples].min(axis=1)[:, None]
+    flat = np.abs(cross) <= 1e-12 * np.max(np.linalg.norm(p - p[:, [1, 2, 0]], axis=2), axis=1) ** 2
+    return ~(inside & ~member & coplanar & small).any(axis=1) | flat  # three in a row: no claim
+
+
+def window_superset(xyz: np.ndarray, radii: np.ndarray, max_side_m: float, install_tolerance_m: float) -> np.ndarray:
+    """Every triple with sides at most ``max_side_m`` that the empty-triangle rule allows (T x 3),
+    less those nearly in a row (under half the receiver's flatness limit: never decoded)."""
+    cand = site_triples(xyz[:, :2], max_side_m)
+    cand = cand[empty_triangles(cand, xyz, radii, install_tolerance_m)]
+    return cand[flatness(xyz[cand]) >= MIN_FLATNESS / 2]

@@ -1,0 +1,63 @@
+"""Rivals: every physical triple of the site that reads like a window, checked by brute force."""
+
+import itertools
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from conftest import grid_xy
+from planner.rivals import find_rivals, site_triples
+
+
+def ccw(t, xy):
+    a, b, c = (xy[v] for v in t)
+    return t if (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) >= 0 else (t[0], t[2], t[1])
+
+
+def reads_like(t, u, xy, ids, tol):
+    """Same IDs counter-clockwise and corresponding sides within tol (plus 1 nm for rounding), for some rotation."""
+    t, u = ccw(t, xy), ccw(u, xy)
+    side = lambda x, k: np.linalg.norm(xy[x[(k + 1) % 3]] - xy[x[k]])
+    for r in range(3):
+        v = u[r:] + u[:r]
+        if [ids[a] for a in t] == [ids[a] for a in v] and all(abs(side(t, k) - side(v, k)) <= tol + 1e-9 for k in range(3)):
+            return True
+    return False
+
+
+sites = st.builds(lambda rows, cols, jitter, seed: grid_xy(rows, cols, 0.5, 0.5, jitter_m=jitter, seed=seed),
+                  st.integers(2, 5), st.integers(2, 6), st.floats(0, 0.1), st.integers(0, 100))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sites, st.floats(0.3, 1.6))
+def test_site_triples_are_all_short_triples(xy, r):
+    got = {tuple(t) for t in site_triples(xy, r).tolist()}
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+    want = {t for t in itertools.combinations(range(len(xy)), 3)
+            if d[t[0], t[1]] <= r and d[t[1], t[2]] <= r and d[t[0], t[2]] <= r}
+    assert got == want
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sites, st.integers(1, 4), st.floats(0.0, 0.12), st.integers(0, 100))
+def test_rivals_are_every_triple_that_reads_alike(xy, k, tol, seed):
+    rng = np.random.default_rng(seed)
+    ids = rng.integers(1, k + 1, len(xy))
+    xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
+    windows = np.array(list(itertools.combinations(range(len(xy)), 3)))
+    windows = windows[rng.random(len(windows)) < 0.3][:25]
+    got = {(w, frozenset(t)) for w, t in find_rivals(windows, xyz, ids, tol)}
+    want = {(m, frozenset(u)) for m, t in enumerate(windows.tolist())
+            for u in itertools.combinations(range(len(xy)), 3)
+            if set(u) != set(t) and reads_like(tuple(t), u, xy, ids, tol)}
+    assert got == want
+
+
+def test_a_mirrored_triangle_is_no_rival_but_a_rotated_copy_is():
+    xy = np.array([[0, 0], [1, 0], [0, 2], [5, 5], [5, 6], [3, 5], [9, 0], [8, 0], [9, 2]], float)
+    xyz = np.column_stack([xy, np.zeros(len(xy))])
+    ids = np.array([1, 2, 3, 1, 2, 3, 1, 2, 3])
+    # (3, 4, 5) is (0, 1, 2) turned 90 deg; (6, 7, 8) is its mirror image, read clockwise.
+    assert [t for _, t in find_rivals(np.array([[0, 1, 2]]), xyz, ids, 0.01)] == [(3, 4, 5)]
