@@ -431,7 +431,7 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
 
 
 def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time_budget: float = 10.0,
-                       cpsat_max_windows: int = 3000, active=None) -> WindowCode:
+                       cpsat_max_windows: int = 3000, active=None, min_bits: int = 1) -> WindowCode:
     """Fewest bits (``K = 2**bits`` labels) with all window keys distinct; deterministic.
 
     From the counting bound upwards, each bit width gets local search
@@ -442,7 +442,8 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
     With passive triples CP-SAT is not run (its model would have to treat them as
     windows: a stricter problem, which proves nothing); widths where random labels would leave many times
     more conflicts than windows are skipped (``HOPELESS_SHARE``), so such a result is
-    called optimal only when it meets the counting bound.
+    called optimal only when it meets the counting bound. ``min_bits`` skips narrower
+    widths (the caller found them wanting).
     """
     w, s, _ = _arrays(windows, shape, symmetric)
     act = _active(active, len(w))  # passive triples may repeat, in other readings
@@ -452,7 +453,7 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
     lbb = max(1, (lb - 1).bit_length())  # ceil(log2 lb), at least 1
     steps = int(LS_STEPS_PER_SECOND * time_budget)
     proved_below = wall_stopped = False
-    start = lbb
+    start = max(lbb, min_bits)
     if not act.all():  # skip widths where random labels would leave far more conflicts than windows
         same = _pairs(s, act)[0]  # pairs that share a shape, whatever the labels
         while same / 8 ** start > max(HOPELESS_SHARE * act.sum(), HOPELESS_MIN):

@@ -39,6 +39,9 @@ CHECK_SEEDS = 2
 DESIGN_PER_M2 = 2000.0
 """Least density of the design sample [1/m^2]: rare windows must be in it to be made unique."""
 
+WIDEN_AFTER = 3
+"""Repair passes after which labels are made afresh with one bit more, if rivals remain."""
+
 MAX_READINGS = 200_000
 """Above this many keyed readings of the site's short triples, rivals join the ID search as they are found."""
 
@@ -156,7 +159,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     if lazy:  # too many short triples to key them all: rivals join as they are found
         others = windows
 
-    def solve(repair_from=None):
+    def solve(repair_from=None, min_bits=1):
         problem = full if (others is None and repair_from is None) else _keyed(windows, xyz, tolerance_m, others)
         if repair_from is not None:
             got = window_code.repair_labels(repair_from[0], n, *problem[:3], repair_from[1], seed=seed,
@@ -164,29 +167,29 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
             if got is not None:
                 return None, got, repair_from[1], problem
         c = window_code.assign_window_code(n, *problem[:3], seed=seed, time_budget=time_budget,
-                                           active=problem[3])
+                                           active=problem[3], min_bits=min_bits)
         return c, c.labels, c.K, problem
 
     code, labels, k, problem = solve()
     method = code.method
     check_seeds = [seed + 1000 * (r + 1) for r in range(CHECK_SEEDS - 1)] + [seed]
-    check = None
-    for _ in range(REPAIR_ROUNDS):
+    for round_ in range(REPAIR_ROUNDS + 1):
         found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
-        missed = []
+        missed, check = [], None
         for s in check_seeds:
             check = checked(s, labels)
             missed.extend(g[0] for g in check.conflicts)  # a sampled window outside the set; rivals follow
-        if not found and not missed:
+        if (not found and not missed) or round_ == REPAIR_ROUNDS:
             break
         windows = np.vstack([windows, np.array(missed, dtype=np.int64).reshape(-1, 3)])
         if lazy:
             others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])
-        new_code, labels, k, problem = solve((labels, k))
+        if round_ == WIDEN_AFTER:  # repairs at this width keep making new rivals: one bit more
+            new_code, labels, k, problem = solve(min_bits=(k - 1).bit_length() + 1)
+        else:
+            new_code, labels, k, problem = solve((labels, k))
         code = new_code or code
         method = f"{code.method}, repaired against rivals and verification"
-    else:
-        check = checked(seed, labels)
     ids = labels.astype(np.int64) + 1
     bits = bits_for(max(k, 2))
     detail = {"windows": int(problem[3].sum()), "sampled_windows": len(design.windows),
