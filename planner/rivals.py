@@ -41,6 +41,14 @@ def site_triples(xy: np.ndarray, max_side_m: float) -> np.ndarray:
     return np.concatenate(out) if out else np.empty((0, 3), dtype=np.int64)
 
 
+def longest_side(triples: np.ndarray, xyz: np.ndarray) -> float:
+    """Longest side of any of ``triples`` (M x 3 indices into ``xyz``) [m]; 0 for none."""
+    if len(triples) == 0:
+        return 0.0
+    p = xyz[np.asarray(triples, dtype=np.int64).reshape(-1, 3)]
+    return float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max())
+
+
 def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """The triples in counter-clockwise plan order (as the receiver reads IDs)."""
     p = xy[triples]
@@ -89,10 +97,8 @@ def find_rivals(windows: np.ndarray, xyz: np.ndarray, ids: np.ndarray, tolerance
     ids = np.asarray(ids, dtype=np.int64)
     if len(windows) == 0:
         return []
-    p = xyz[windows]
-    longest = float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max())
     if site is None:
-        site = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
+        site = site_triples(xyz[:, :2], longest_side(windows, xyz) + tolerance_m + 1e-9)
     q, s = _readings(windows, xyz, ids), _readings(site, xyz, ids)
     order = np.argsort(s.code, kind="stable")
     s_code = s.code[order]

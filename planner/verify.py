@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import Camera, Poses
-from .rivals import find_rivals, site_triples
+from .rivals import find_rivals, longest_side, site_triples
 from .window_set import INSTALL_TOLERANCE_M, window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
     find_windows, sample_poses, working_area
@@ -69,10 +69,7 @@ def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_si
 
 def side_bound(ws: WindowSet, xyz: np.ndarray, tolerance_m: float) -> float:
     """Longest side of the windows ``ws`` plus the tolerance [m]: the sampled side bound."""
-    if len(ws) == 0:
-        return 0.0
-    p = xyz[ws.windows]
-    return float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max()) + tolerance_m
+    return longest_side(ws.windows, xyz) + tolerance_m if len(ws) else 0.0
 
 
 @dataclass(frozen=True)
@@ -164,12 +161,7 @@ def observe_poses(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Came
     """Find each pose's window, and the site's triples that could read like one."""
     pw = find_windows(poses, xyz, radii, camera)
     ws = canonical_windows(pw.triples[pw.covered], xyz, tolerance_m)
-    if len(ws):
-        p = xyz[ws.windows]
-        longest = float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max())
-        site = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
-    else:
-        site = np.empty((0, 3), dtype=np.int64)
+    site = site_triples(xyz[:, :2], side_bound(ws, xyz, tolerance_m) + 1e-9) if len(ws) else np.empty((0, 3), np.int64)
     return Observation(poses.position, pw, ws, per_m2, seed, tolerance_m, xyz, site)
 
 

@@ -3,9 +3,10 @@
 Every fix needs three LEDs, so it is enough that every *window* the camera can
 produce on this layout is unique, not every neighbouring pair. Windows are
 collected from a dense pose sample (:func:`planner.verify.design_windows`, at
-least ``DESIGN_PER_M2``), IDs are found by :mod:`planner.window_code`, and the
-every other triple of the site congruent to a window (:mod:`planner.rivals`)
-joins the problem as a passive triple, which no window may read like. The result
+least ``DESIGN_PER_M2``) and joined by every triangle of the window set
+(:mod:`planner.window_set`); IDs are found by :mod:`planner.window_code`, with every
+other triple of the site that could read like a window (:mod:`planner.rivals`) as a
+passive triple, which no window may read like. The result
 is checked on ``CHECK_SEEDS`` independent pose samples at the verification
 density; windows that only those samples found are added and the IDs repaired,
 up to ``REPAIR_ROUNDS`` passes. The last check sample (seed
@@ -20,7 +21,7 @@ from . import window_code
 from .assignment import Assignment, bits_for, tile_regions
 from .camera import Camera
 from .graph import NeighbourGraph
-from .rivals import counter_clockwise, find_rivals, site_triples
+from .rivals import counter_clockwise, find_rivals, longest_side, site_triples
 from .verify import Verification, classify, design_windows, observe
 from .window_set import INSTALL_TOLERANCE_M, window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
@@ -63,7 +64,7 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.
     if len(windows) == 0:
         return windows, np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
     side = lambda t: np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
-    longest = float(side(windows).max())
+    longest = longest_side(windows, xyz)
     if others is None:
         others = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
     site = counter_clockwise(np.unique(np.sort(np.vstack([windows, others]), axis=1), axis=0), xyz[:, :2])
@@ -115,8 +116,7 @@ def _protected(sampled: np.ndarray, xyz: np.ndarray, radii: np.ndarray, toleranc
     allows up to the longest sampled side plus the tolerance; returns them and that bound [m]."""
     if len(sampled) == 0:
         return sampled, 0.0
-    p = xyz[sampled]
-    bound = float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max()) + tolerance_m
+    bound = longest_side(sampled, xyz) + tolerance_m
     extra = window_superset(xyz, radii, bound, install_tolerance_m)
     return np.unique(np.sort(np.vstack([sampled, extra]), axis=1), axis=0), bound
 
@@ -133,7 +133,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
                   seed: int = 0, time_budget: float = 10.0, per_m2: float = POSES_PER_M2,
                   tolerance_m: float = CONGRUENCE_TOLERANCE_M, install_tolerance_m: float = INSTALL_TOLERANCE_M,
                   observations: dict | None = None) -> tuple[Assignment, Verification]:
-    """The window scheme, verified: IDs under which no two sampled windows share a key.
+    """The window scheme, verified: IDs under which no protected window reads like another triple.
 
     Returns the assignment and its final verification (on poses of seed ``seed``).
     ``observations`` (seed -> :class:`Observation` at ``per_m2``) is filled and reused,
