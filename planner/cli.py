@@ -297,11 +297,15 @@ def _verification_line(v: dict) -> str:
         line += "; first conflict: " + " vs ".join("(" + ", ".join(t) + ")" for t in group[:2])
     w = v.get("window_set")
     if w:
-        line += (f"\n  windows  {w['triangles']} triangles that may be windows (empty, sides up to "
-                 f"{w['max_side_m']:g} m from samples, installed within {w['install_tolerance_m']:g} m): "
-                 f"{w['read_alike']} read like another triple")
+        bound = ("every pose of the envelope" if w.get("complete") else
+                 f"empty, sides up to {w['max_side_m']:g} m from samples")
+        line += (f"\n  windows  {w['triangles']} triangles that may be windows ({bound}, installed within "
+                 f"{w['install_tolerance_m']:g} m): {w['read_alike']} read like another triple")
         if w["first_conflicts"]:
             line += "; first: " + " vs ".join("(" + ", ".join(t) + ")" for t in w["first_conflicts"][0][:2])
+        line += ("\n  proof    decodable at every pose of the envelope: proved" if w.get("proved") else
+                 "\n  proof    not proved: " + (w.get("not_proved_because") or "a triangle that may be a window "
+                                                 "reads like another triple"))
     return line
 
 

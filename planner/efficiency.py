@@ -9,6 +9,7 @@ own figures. Efficiency is counted as the paper does, ``1 - bits / naive_bits``
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -96,8 +97,13 @@ class TableRow:
         return efficiency(self.printed_bits, self.printed_naive_bits)
 
 
+@functools.lru_cache(maxsize=8)
 def table_row(layout: Layout, name: str = "") -> TableRow:
-    """Regenerate one row of the paper's table from a layout (naive, paper, bound, shortest verified)."""
+    """Regenerate one row of the paper's table from a layout (naive, paper, bound, shortest verified).
+
+    A pure function of the layout (planning is deterministic), so a process that asks
+    twice (the command, then its tests) plans each bundled grid once.
+    """
     t0 = time.perf_counter()
     n = len(layout.luminaires)
     xy = layout.xy
@@ -129,6 +135,7 @@ class CurveRow:
     seconds: dict = field(default_factory=dict)
 
 
+@functools.lru_cache(maxsize=32)
 def curve_row(n: int, *, window: bool, paper: bool = True, pitch_m: float = PITCH_M) -> CurveRow:
     """Naive bits, pair-rule bound, and (if asked) the paper and window schemes' bits on ``lattice_layout(n)``."""
     layout = lattice_layout(n, pitch_m)

@@ -26,6 +26,7 @@ from .graph import build_graph
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from .plan import Plan, dump_plan, plan_document, plan_hash
 from .verify import check_window_set, classify, observe, side_bound
+from .window_proof import prove_window_set
 from .window_set import INSTALL_TOLERANCE_M
 from .window_scheme import assign_unique, assign_window
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
@@ -132,6 +133,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                                                  seed=options.seed, tolerance_m=options.tolerance_m)
         return classify(observations[options.seed], ids)
 
+    proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
     made = {}
     if options.scheme in ("paper", "auto"):
         paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
@@ -140,7 +142,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
                                        time_budget=options.time_budget, per_m2=options.poses_per_m2,
                                        tolerance_m=options.tolerance_m, install_tolerance_m=options.install_tolerance_m,
-                                       observations=observations)
+                                       observations=observations, proof=proof)
     if options.scheme == "unique":
         unique = assign_unique(xy, graph)
         made["unique"] = (unique, check(unique.ids))
@@ -150,7 +152,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     def judged(a, v):  # every scheme is also judged on the window set, up to one side bound
         return a, (v and replace(v, window_set=check_window_set(xyz, radii, a.ids, bound,
                                                                   tolerance_m=options.tolerance_m,
-                                                                  install_tolerance_m=options.install_tolerance_m)))
+                                                                  install_tolerance_m=options.install_tolerance_m,
+                                                                  proof=proof)))
 
     made = {k: judged(a, v) for k, (a, v) in made.items()}
     if options.scheme == "auto":

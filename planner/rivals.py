@@ -19,11 +19,15 @@ from scipy.spatial import cKDTree
 
 def site_triples(xy: np.ndarray, max_side_m: float) -> np.ndarray:
     """All triples ``i < j < k`` of points ``xy`` (N x 2 [m]) whose three sides are at most ``max_side_m``."""
-    pairs = cKDTree(xy).query_pairs(max_side_m, output_type="ndarray")
+    return triples_of_pairs(cKDTree(xy).query_pairs(max_side_m, output_type="ndarray"), len(xy))
+
+
+def triples_of_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
+    """All triples ``i < j < k`` of ``n`` points whose three pairs are among ``pairs`` (M x 2, ``i < j``)."""
     if len(pairs) == 0:
         return np.empty((0, 3), dtype=np.int64)
-    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))].astype(np.int64)
-    n = len(xy)
+    pairs = np.sort(np.asarray(pairs, dtype=np.int64), axis=1)
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
     code = pairs[:, 0] * n + pairs[:, 1]  # sorted, since pairs are lexsorted
     start = np.searchsorted(pairs[:, 0], np.arange(n + 1))
     deg = np.diff(start)

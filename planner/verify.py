@@ -6,7 +6,8 @@ counter-clockwise order plus the shape of the triangle. A pose is *covered* when
 it sees three non-collinear LEDs, and *ambiguous* when another set of luminaires
 anywhere on the site reads the same (PRODUCT.md, "What decodable means"): every
 physical triple is searched (:mod:`planner.rivals`), not only the windows the
-sample produced. The statistics are those of a sample, and are labelled so.
+sample produced. The statistics are those of a sample, and are labelled so; what
+is proved for every pose is the window-set check (:class:`WindowSetCheck`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from .camera import Camera, Poses
 from .rivals import find_rivals, longest_side, site_triples
+from .window_proof import Proof
 from .window_set import INSTALL_TOLERANCE_M, window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
     find_windows, sample_poses, working_area
@@ -30,9 +32,11 @@ STATUS_NAMES = ("decodable", "ambiguous", "collinear", "fewer than 3 LEDs seen")
 class WindowSetCheck:
     """Every triangle that may be a window, checked against every triple of the site.
 
-    The triangles are those the empty-triangle rule allows (:mod:`planner.window_set`)
-    with sides up to ``max_side_m``; that bound comes from pose samples, so a clean
-    check is complete up to a sampled side bound, not a proof (docs/verification.md).
+    When ``complete``, the triangles are every triple that some pose of the envelope
+    could take as its window (:mod:`planner.window_proof`), and a check without
+    conflicts proves decodability. Otherwise they are those the empty-triangle rule
+    allows (:mod:`planner.window_set`) with sides up to ``max_side_m``, a bound taken
+    from pose samples, and ``reason`` says why there is no proof (docs/verification.md).
     """
 
     triangles: int
@@ -40,31 +44,56 @@ class WindowSetCheck:
     max_side_m: float
     install_tolerance_m: float
     tolerance_m: float
+    complete: bool = False
+    reason: str = ""
+    envelope: dict | None = None
+
+    @property
+    def proved(self) -> bool:
+        """Every pose of the envelope that sees a window decodes to one place."""
+        return self.complete and not self.conflicts
 
     def summary(self, names: list[str], limit: int = 5) -> dict:
-        return {
-            "rule": "empty triangle",
+        out = {
+            "rule": "spindle, axis disc and empty triangle" if self.complete else "empty triangle",
             "max_side_m": round(self.max_side_m, 4),
-            "max_side_from": "pose samples",
+            "max_side_from": "proof" if self.complete else "pose samples",
             "install_tolerance_m": self.install_tolerance_m,
             "congruence_tolerance_m": self.tolerance_m,
             "triangles": self.triangles,
             "read_alike": len(self.conflicts),
             "first_conflicts": [[[names[i] for i in t] for t in group] for group in self.conflicts[:limit]],
-            "proved": False,
+            "complete": self.complete,
+            "proved": self.proved,
         }
+        if self.envelope:
+            out["envelope"] = self.envelope
+        if self.reason:
+            out["not_proved_because"] = self.reason
+        return out
 
 
 def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_side_m: float, *,
                      tolerance_m: float = CONGRUENCE_TOLERANCE_M,
-                     install_tolerance_m: float = INSTALL_TOLERANCE_M) -> WindowSetCheck:
-    """Find, for every triangle the empty-triangle rule allows up to ``max_side_m``, the triples that read like it."""
-    tri = window_superset(xyz, radii, max_side_m, install_tolerance_m)
+                     install_tolerance_m: float = INSTALL_TOLERANCE_M, proof: Proof | None = None) -> WindowSetCheck:
+    """Find, for every triangle that may be a window, the triples that read like it.
+
+    With a complete ``proof`` (:func:`planner.window_proof.prove_window_set`) its triangles
+    are checked; otherwise those the empty-triangle rule allows up to ``max_side_m``.
+    """
+    if proof is not None and proof.complete:
+        tri = proof.triangles
+        max_side_m = longest_side(tri, xyz)
+    else:
+        tri = window_superset(xyz, radii, max_side_m, install_tolerance_m)
     rivals: dict[int, list] = {}
     for row, triple in find_rivals(tri, xyz, np.asarray(ids), tolerance_m):
         rivals.setdefault(row, []).append(triple)
     groups = sorted(([tuple(int(v) for v in tri[r])] + found for r, found in rivals.items()), key=lambda g: (-len(g), g))
-    return WindowSetCheck(len(tri), groups, max_side_m, install_tolerance_m, tolerance_m)
+    complete = proof is not None and proof.complete
+    return WindowSetCheck(len(tri), groups, max_side_m, install_tolerance_m, tolerance_m, complete,
+                          proof.reason if proof is not None else "no proof attempted",
+                          proof.envelope if proof is not None else None)
 
 
 def side_bound(ws: WindowSet, xyz: np.ndarray, tolerance_m: float) -> float:
@@ -120,7 +149,9 @@ class Verification:
     def summary(self, names: list[str], limit: int = 5) -> dict:
         """The ``verification`` mapping of ``plan.yaml``."""
         covered = self.count(DECODABLE) + self.count(AMBIGUOUS)
+        proved = bool(self.window_set and self.window_set.proved and not self.conflicts)
         return {
+            "decodability": "proved" if proved else "sampled only",
             "method": "sampled",
             "poses": self.poses,
             "poses_per_m2": self.per_m2,

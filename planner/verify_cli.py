@@ -2,7 +2,9 @@
 
 Exit codes: 0 every sampled pose that sees a window decodes uniquely and no
 triangle that may be a window reads like another triple of the site; 3 otherwise
-(the first conflicting luminaire triples are named); 1 bad input; 2 usage.
+(the first conflicting luminaire triples are named); 1 bad input; 2 usage. The
+triangles are proved anew (:mod:`planner.window_proof`) where the site is within
+the proof's reach; the summary says whether decodability is proved or sampled only.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from .camera import Camera
 from .errors import UsageError
 from .plan import load_plan
 from .verify import check_window_set, side_bound, verify_plan
+from .window_proof import prove_window_set
 from .window_set import INSTALL_TOLERANCE_M
 
 EXIT_AMBIGUOUS = 3
@@ -58,10 +61,13 @@ def main(argv: list[str] | None = None) -> int:
     recorded = (doc.get("verification") or {}).get("window_set") or {}
     install = args.install_tolerance if args.install_tolerance is not None else \
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
-    # The triangles are found anew from the luminaires; only the sampled side bound may come from the plan.
-    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0)))
+    # The proof is made anew from the luminaires and the camera, never read from the plan; without
+    # one, only the sampled side bound may come from the plan.
+    proof = prove_window_set(xyz, radii, camera, install)
+    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0))
+                if recorded.get("max_side_from") != "proof" else 0.0)
     result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
-                                                         install_tolerance_m=install))
+                                                         install_tolerance_m=install, proof=proof))
     summary = result.summary([e["name"] for e in lums], limit=10)
     if args.map:
         _write_map(doc, args.plan, xyz, radii, ids, camera, result, Path(args.map))

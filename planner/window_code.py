@@ -28,6 +28,9 @@ TEMPERATURE = 0.6
 """Heat-bath temperature [conflicting pairs]: 0.6-0.7 suits K = 16 (16 x 32 L windows), 0.5 K = 32."""
 STEP_WORK = 256 * 32
 """Candidate keys per luminaire (degree x labels) up to which a focused step counts as one step."""
+STALL_SHARE = 0.25
+"""A focused search stops when its best has not improved for this share of its steps (at least ``STALL_MIN``)."""
+STALL_MIN = 5000
 HOPELESS_SHARE = 0.1
 """With passive triples, widths start where random labels would leave conflicting pairs
 under this share of the windows (expected pairs: those sharing a shape over K^3)."""
@@ -282,7 +285,9 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
 
     Each step takes a random conflicting window, scores every label for each of its
     three luminaires by the change in conflicting pairs (exact, from incremental key
-    counts) and draws one move with probability ``exp(-delta / temperature)``.
+    counts) and draws one move with probability ``exp(-delta / temperature)``. It stops
+    early when the best has not improved for ``STALL_SHARE`` of ``max_steps``: a width
+    that cannot be met then costs a fraction of the budget.
     """
     K, w, act = prob.K, prob.w, prob.act
     codes = prob.codes(lab)
@@ -292,8 +297,9 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
     todo = np.flatnonzero(listed).tolist()  # holds every triple in a conflicting pair
     best, best_lab = pairs, lab.copy()
     three = np.arange(3)
-    step = 0
-    while pairs > 0 and step < max_steps and todo:
+    step = last = 0
+    stall = max(STALL_MIN, int(STALL_SHARE * max_steps))
+    while pairs > 0 and step < max_steps and todo and step - last <= stall:
         j = int(rng.integers(len(todo)))
         m = todo[j]
         if not prob.in_conflict(m, int(codes[m]), A, P):  # resolved meanwhile: drop lazily
@@ -343,7 +349,7 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
                 listed[m2] = True
                 todo.append(m2)
         if pairs < best:
-            best, best_lab = pairs, lab.copy()
+            best, best_lab, last = pairs, lab.copy(), step
     lab[:] = best_lab
     return best
 

@@ -23,6 +23,7 @@ from .camera import Camera
 from .graph import NeighbourGraph
 from .rivals import counter_clockwise, find_rivals, longest_side, site_triples
 from .verify import Verification, classify, design_windows, observe
+from .window_proof import Proof
 from .window_set import INSTALL_TOLERANCE_M, window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
 
@@ -42,6 +43,9 @@ DESIGN_PER_M2 = 2000.0
 
 WIDEN_AFTER = 3
 """Repair passes after which labels are made afresh with one bit more, if rivals remain."""
+
+PROOF_WIDEN_AFTER = 1
+"""... and, designing against a proved window set (whose conflicts arrive many at a time), after this many."""
 
 MAX_READINGS = 200_000
 """Above this many keyed readings of the site's short triples, rivals join the ID search as they are found."""
@@ -112,7 +116,7 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.
 
 def _protected(sampled: np.ndarray, xyz: np.ndarray, radii: np.ndarray, tolerance_m: float,
                install_tolerance_m: float) -> tuple[np.ndarray, float]:
-    """The windows to protect: the sampled ones and every triangle the empty-triangle rule
+    """The windows to protect first: the sampled ones and every triangle the empty-triangle rule
     allows up to the longest sampled side plus the tolerance; returns them and that bound [m]."""
     if len(sampled) == 0:
         return sampled, 0.0
@@ -132,7 +136,7 @@ def assign_unique(xy: np.ndarray, graph: NeighbourGraph) -> Assignment:
 def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera, *,
                   seed: int = 0, time_budget: float = 10.0, per_m2: float = POSES_PER_M2,
                   tolerance_m: float = CONGRUENCE_TOLERANCE_M, install_tolerance_m: float = INSTALL_TOLERANCE_M,
-                  observations: dict | None = None) -> tuple[Assignment, Verification]:
+                  observations: dict | None = None, proof: Proof | None = None) -> tuple[Assignment, Verification]:
     """The window scheme, verified: IDs under which no protected window reads like another triple.
 
     Returns the assignment and its final verification (on poses of seed ``seed``).
@@ -153,14 +157,15 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     design = design_windows(xyz, radii, outline, camera, per_m2=design_density, seed=seed + 1,
                             tolerance_m=tolerance_m)
     windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
-    others = None
+    others, first = None, windows
     full = _keyed(windows, xyz, tolerance_m)
     lazy = len(full[0]) > MAX_READINGS
     if lazy:  # too many short triples to key them all: rivals join as they are found
         others = windows
 
     def solve(repair_from=None, min_bits=1):
-        problem = full if (others is None and repair_from is None) else _keyed(windows, xyz, tolerance_m, others)
+        fresh = others is None and repair_from is None and len(windows) == len(first)
+        problem = full if fresh else _keyed(windows, xyz, tolerance_m, others)
         if repair_from is not None:
             got = window_code.repair_labels(repair_from[0], n, *problem[:3], repair_from[1], seed=seed,
                                             max_steps=200_000, active=problem[3])
@@ -176,6 +181,9 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     for round_ in range(REPAIR_ROUNDS + 1):
         found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
         missed, check = [], None
+        if proof is not None and proof.complete:  # proved windows that read alike join the protected ones
+            missed.extend(tuple(proof.triangles[r]) for r, _ in find_rivals(proof.triangles, xyz, labels + 1,
+                                                                              tolerance_m))
         for s in check_seeds:
             check = checked(s, labels)
             missed.extend(g[0] for g in check.conflicts)  # a sampled window outside the set; rivals follow
@@ -184,7 +192,8 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         windows = np.vstack([windows, np.array(missed, dtype=np.int64).reshape(-1, 3)])
         if lazy:
             others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])
-        if round_ == WIDEN_AFTER:  # repairs at this width keep making new rivals: one bit more
+        widen_after = PROOF_WIDEN_AFTER if proof is not None and proof.complete else WIDEN_AFTER
+        if round_ == widen_after:  # repairs at this width keep making new rivals: one bit more
             new_code, labels, k, problem = solve(min_bits=(k - 1).bit_length() + 1)
         else:
             new_code, labels, k, problem = solve((labels, k))

@@ -12,21 +12,20 @@ it. With luminaires installed up to ``d`` from the drawing, an edge line moves b
 most ``d`` at its ends and the LED by ``d``, so only LEDs deeper than ``2 d`` inside
 every edge of the drawn triangle are sure to be inside the installed one.
 
-The rule says nothing about long triangles: the set is bounded by a side length,
-which for now is taken from a dense pose sample (the longest window it found plus a
-margin), so the set is complete only up to that sampled bound (docs/verification.md).
+The rule needs every ray in view to meet the ceiling (largest tilt plus corner angle
+under 90 deg; :func:`planner.window_proof.envelope` checks it) and says nothing about
+long triangles: here the set is bounded by a side length from a dense pose sample, so
+it is complete only up to that bound. :mod:`planner.window_proof` bounds it for every
+pose instead (docs/verification.md).
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .camera import Camera
 from .rivals import site_triples
-from .windows import MIN_FLATNESS, flatness
+from .windows import MIN_FLATNESS
 
 NEIGHBOURS = 32
 """LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
@@ -36,13 +35,6 @@ INSTALL_TOLERANCE_M = 0.03
 
 SAME_HEIGHT_M = 1e-3
 """LEDs whose heights differ by less than this count as one ceiling plane [m]."""
-
-
-def rule_holds(camera: Camera) -> bool:
-    """The ellipse argument needs every ray in view to meet the ceiling: tilt + corner angle < 90 deg."""
-    corner = math.atan(math.hypot(max(camera.cx_px, camera.width_px - camera.cx_px) / camera.fx_px,
-                                  max(camera.cy_px, camera.height_px - camera.cy_px) / camera.fy_px))
-    return camera.max_tilt_rad + corner < math.pi / 2
 
 
 def empty_triangles(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> np.ndarray:
@@ -74,9 +66,23 @@ def empty_triangles(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray, ins
     return ~(inside & ~member & coplanar & small).any(axis=1) | flat  # three in a row: no claim
 
 
+def may_be_decoded(p: np.ndarray, install_tolerance_m: float) -> np.ndarray:
+    """Triangles ``p`` (T, 3, 2) [m] whose installed shape may reach the receiver's flatness limit.
+
+    Each corner moves at most ``d``: twice the area grows by at most ``4 d L + 4 d^2`` and
+    the longest side ``L`` shrinks by at most ``2 d``; a triangle below :data:`MIN_FLATNESS`
+    even then is never decoded (the receiver calls it collinear) and cannot be a window.
+    """
+    d = install_tolerance_m
+    e = p[:, [1, 2, 0]] - p
+    longest = np.linalg.norm(e, axis=2).max(axis=1)
+    twice_area = np.abs(e[:, 0, 0] * e[:, 2, 1] - e[:, 0, 1] * e[:, 2, 0])
+    return (twice_area + 4 * d * longest + 4 * d * d) / np.maximum(longest - 2 * d, 1e-12) ** 2 >= MIN_FLATNESS
+
+
 def window_superset(xyz: np.ndarray, radii: np.ndarray, max_side_m: float, install_tolerance_m: float) -> np.ndarray:
     """Every triple with sides at most ``max_side_m`` that the empty-triangle rule allows (T x 3),
-    less those nearly in a row (under half the receiver's flatness limit: never decoded)."""
+    less those whose installed shape is certainly too flat to decode."""
     cand = site_triples(xyz[:, :2], max_side_m)
     cand = cand[empty_triangles(cand, xyz, radii, install_tolerance_m)]
-    return cand[flatness(xyz[cand]) >= MIN_FLATNESS / 2]
+    return cand[may_be_decoded(xyz[cand][:, :, :2], install_tolerance_m)]

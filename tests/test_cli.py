@@ -126,9 +126,12 @@ def test_json_summary_is_machine_readable(tmp_path):
     paper, window = summary["schemes_considered"]["paper"], summary["schemes_considered"]["window"]
     assert (paper["bits"], paper["ambiguous_poses"]) == (4, 0)
     assert paper["window_set_conflicts"] > 0  # the pair rule leaves some triangle that may be a window
-    assert (window["bits"], window["ambiguous_poses"], window["window_set_conflicts"]) == (3, 0, 0)
+    assert (window["bits"], window["ambiguous_poses"], window["window_set_conflicts"]) == (4, 0, 0)
     assert summary["scheme"] == "window" and summary["verification"]["ambiguous"] == 0
-    assert summary["verification"]["method"] == "sampled" and summary["verification"]["window_set"]["read_alike"] == 0
+    v = summary["verification"]
+    assert v["method"] == "sampled" and v["window_set"]["read_alike"] == 0
+    assert v["decodability"] == "proved" and v["window_set"]["complete"] and v["window_set"]["max_side_from"] == "proof"
+    assert v["window_set"]["envelope"]["max_tilt_deg"] == 40.0
 
 
 @pytest.mark.parametrize("make,message", [

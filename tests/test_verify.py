@@ -18,7 +18,7 @@ from planner.verify import AMBIGUOUS, DECODABLE, verify_plan
 from planner.window_code import window_keys
 from planner.rivals import find_rivals
 from planner.window_scheme import assign_window
-from planner.window_set import window_superset
+from planner.window_proof import prove_window_set
 from planner.windows import canonical_windows, find_windows, sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -195,8 +195,9 @@ def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
     for seed in range(3):  # what default samples produce: the planner's and vlp-verify's seeds
         ws = verify_plan(xyz, radii, ids, doc["outline"], cam, seed=seed).windows
         sampled |= {frozenset(t) for t in ws.windows.tolist()}
-    bound = doc["verification"]["window_set"]["max_side_m"]
-    unsampled = [t for t in window_superset(xyz, radii, bound, 0.03).tolist() if frozenset(t) not in sampled]
+    assert doc["verification"]["decodability"] == "proved"
+    proof = prove_window_set(xyz, radii, cam, 0.03)
+    unsampled = [t for t in proof.triangles.tolist() if frozenset(t) not in sampled]
     assert unsampled
     # A triple shaped like an unsampled window, whose IDs differ from it in one place: make them equal.
     clash = None
@@ -220,6 +221,7 @@ def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
     w = json.loads(result.stdout)["window_set"]
     window, rival = ({lums[i]["name"] for i in x} for x in (t, u))
     assert any(window in [set(x) for x in g] and rival in [set(x) for x in g] for g in w["first_conflicts"])
+    assert w["complete"] and not w["proved"] and json.loads(result.stdout)["decodability"] == "sampled only"
 
 
 def rivals_ccw(t, xyz):
