@@ -55,7 +55,7 @@ def main() -> None:
     for name, layout in sites:
         xyz, radii = layout.xyz, np.array([lum.radius for lum in layout.luminaires])
         t0 = time.perf_counter()
-        proved = possible_windows(xyz, radii, envelope(cam, xyz, radii, 0.03), budget=10**8)
+        proved = possible_windows(xyz, radii, envelope(cam, xyz, radii, 0.03), budget=10**8, pair_budget=10**8)
         seconds = time.perf_counter() - t0
         fresh: set = set()
         for s in range(11, 11 + args.fresh_seeds):

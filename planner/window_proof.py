@@ -334,13 +334,14 @@ def _strip(tree: cKDTree, a: np.ndarray, b: np.ndarray, step_m: float, n: int) -
     return np.where(dup, -1, idx)
 
 
-def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope) -> np.ndarray:
-    """Pairs ``i < j`` (M x 2) that can be two members of a window at some pose of the envelope."""
+def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = PAIR_BUDGET) -> np.ndarray:
+    """Pairs ``i < j`` (M x 2) that can be two members of a window at some pose of the envelope;
+    :class:`NotProvable` when more than ``budget`` pairs lie within reach."""
     n = len(xy)
     pairs = cKDTree(xy).query_pairs(env.reach_m + 2 * env.install_m, output_type="ndarray").astype(np.int64)
-    if len(pairs) > PAIR_BUDGET:
+    if len(pairs) > budget:
         raise NotProvable(f"{len(pairs):,} pairs of luminaires within the camera's reach of "
-                          f"{env.reach_m:.2f} m, over the proof's budget of {PAIR_BUDGET:,}")
+                          f"{env.reach_m:.2f} m, over the proof's budget of {budget:,}")
     if len(pairs) == 0 or n < 4:
         return pairs.reshape(-1, 2)
     tree = cKDTree(xy)
@@ -361,14 +362,15 @@ def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope) -> np.ndarr
     return pairs[keep]
 
 
-def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = TRIANGLE_BUDGET) -> np.ndarray:
+def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = TRIANGLE_BUDGET,
+                     pair_budget: int = PAIR_BUDGET) -> np.ndarray:
     """Every triple (T x 3, ``i < j < k``) that may be a window at some pose of the envelope;
     :class:`NotProvable` when more than ``budget`` candidates pass the cheap tests."""
     xy = xyz[:, :2]
     n = len(xy)
     if n < 3:
         return np.empty((0, 3), dtype=np.int64)
-    cand = triples_of_pairs(possible_pairs(xy, radii, env), n)
+    cand = triples_of_pairs(possible_pairs(xy, radii, env, pair_budget), n)
     cand = cand[may_be_decoded(xy[cand], env.install_m)]
     cand = cand[empty_triangles(cand, xyz, radii, env.install_m)]
     if len(cand) > budget:

@@ -148,7 +148,7 @@ def test_on_larger_sites_where_the_tests_exclude_most_triples_no_exact_window_is
         shift *= 0.03 * rng.uniform(0, 1, (len(xy), 1)) / np.linalg.norm(shift, axis=1, keepdims=True)
         installed = drawn + np.column_stack([shift, np.zeros(len(xy))])
         radii = np.full(len(xy), 0.1)
-        triangles = wp.possible_windows(drawn, radii, wp.envelope(cam, drawn, radii, 0.03), budget=10**7)
+        triangles = wp.possible_windows(drawn, radii, wp.envelope(cam, drawn, radii, 0.03), budget=10**7, pair_budget=10**7)
         everything = wp.triples_of_pairs(np.column_stack(np.triu_indices(len(xy), 1)), len(xy))
         assert len(triangles) < len(everything)  # the tests do exclude
         proved = {tuple(t) for t in triangles.tolist()}
