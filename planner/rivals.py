@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .windows import twice_signed_area
+
 
 def site_triples(xy: np.ndarray, max_side_m: float) -> np.ndarray:
     """All triples ``i < j < k`` of points ``xy`` (N x 2 [m]) whose three sides are at most ``max_side_m``."""
@@ -56,8 +58,7 @@ def longest_side(triples: np.ndarray, xyz: np.ndarray) -> float:
 def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """The triples in counter-clockwise plan order (as the receiver reads IDs)."""
     p = xy[triples]
-    cross = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-    return np.where((cross < 0)[:, None], triples[:, [0, 2, 1]], triples)
+    return np.where((twice_signed_area(p) < 0)[:, None], triples[:, [0, 2, 1]], triples)
 
 
 @dataclass(frozen=True)

@@ -44,10 +44,8 @@ from scipy.spatial import cKDTree
 from .camera import Camera
 from .errors import PlanningError
 from .rivals import triples_of_pairs
-from .window_set import empty_triangles, may_be_decoded
-
-SAME_HEIGHT_M = 1e-3
-"""LEDs whose heights differ by less than this count as one ceiling plane [m]."""
+from .window_set import SAME_HEIGHT_M, empty_triangles, may_be_decoded
+from .windows import twice_signed_area
 
 MIN_CELL_M = 0.005
 """Smallest cell of axis points searched inside a triangle [m]: a triple with an unexcluded cell is kept."""
@@ -290,8 +288,7 @@ def _inside_alive(p: np.ndarray, xs: np.ndarray, valid: np.ndarray, env: Envelop
 
     while len(tri):
         pt = p[tri]
-        cross = (pt[:, 1, 0] - pt[:, 0, 0]) * (pt[:, 2, 1] - pt[:, 0, 1]) - (pt[:, 1, 1] - pt[:, 0, 1]) * (pt[:, 2, 0] - pt[:, 0, 0])
-        sign = np.where(cross >= 0, 1.0, -1.0)
+        sign = np.where(twice_signed_area(pt) >= 0, 1.0, -1.0)
         meets = np.ones(len(tri), dtype=bool)  # cells that miss the triangle are left to the sides' test
         for i in range(3):
             e = pt[:, (i + 1) % 3] - pt[:, i]
@@ -338,13 +335,13 @@ def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budget: int
     """Pairs ``i < j`` (M x 2) that can be two members of a window at some pose of the envelope;
     :class:`NotProvable` when more than ``budget`` pairs lie within reach."""
     n = len(xy)
-    pairs = cKDTree(xy).query_pairs(env.reach_m + 2 * env.install_m, output_type="ndarray").astype(np.int64)
+    tree = cKDTree(xy)
+    pairs = tree.query_pairs(env.reach_m + 2 * env.install_m, output_type="ndarray").astype(np.int64)
     if len(pairs) > budget:
         raise NotProvable(f"{len(pairs):,} pairs of luminaires within the camera's reach of "
                           f"{env.reach_m:.2f} m, over the proof's budget of {budget:,}")
     if len(pairs) == 0 or n < 4:
         return pairs.reshape(-1, 2)
-    tree = cKDTree(xy)
     small = radii <= radii.min() + 1e-12  # only the smallest discs surely count in case B at pair level
     keep = np.zeros(len(pairs), dtype=bool)
     for start in range(0, len(pairs), _CHUNK):
@@ -389,8 +386,7 @@ def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: 
         for i, j in ((0, 1), (1, 2), (2, 0)):
             case_a &= _spindle_count(p[:, i], p[:, j], xy[near], valid, env) == 0
         small = radii[near] <= radii[tr].min(axis=1)[:, None]
-        cross = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-        out_side = np.where(cross >= 0, -1.0, 1.0)  # left of i->j is inside for a counter-clockwise triangle
+        out_side = np.where(twice_signed_area(p) >= 0, -1.0, 1.0)  # left of i->j is inside for a counter-clockwise triangle
         beyond = np.zeros(len(tr), dtype=bool)  # some axis point beyond a side is not excluded
         for i, j in ((0, 1), (1, 2), (2, 0)):
             strip = _strip(tree, p[:, i], p[:, j], env.disc_m, n)

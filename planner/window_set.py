@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .rivals import site_triples
-from .windows import MIN_FLATNESS
+from .windows import MIN_FLATNESS, twice_signed_area
 
 NEIGHBOURS = 32
 """LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
@@ -48,7 +48,7 @@ def empty_triangles(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray, ins
     near = near.reshape(len(triples), k)
     p = xy[triples]  # (T, 3, 2)
     q = xy[near]  # (T, k, 2)
-    cross = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+    cross = twice_signed_area(p)
     orient = np.where(cross >= 0, 1.0, -1.0)[:, None]
     margin = 2.0 * install_tolerance_m  # 0: the closed triangle (an LED on an edge is nearer too)
     inside = np.ones(near.shape, dtype=bool)
@@ -76,7 +76,7 @@ def may_be_decoded(p: np.ndarray, install_tolerance_m: float) -> np.ndarray:
     d = install_tolerance_m
     e = p[:, [1, 2, 0]] - p
     longest = np.linalg.norm(e, axis=2).max(axis=1)
-    twice_area = np.abs(e[:, 0, 0] * e[:, 2, 1] - e[:, 0, 1] * e[:, 2, 0])
+    twice_area = np.abs(twice_signed_area(p))
     return (twice_area + 4 * d * longest + 4 * d * d) / np.maximum(longest - 2 * d, 1e-12) ** 2 >= MIN_FLATNESS
 
 

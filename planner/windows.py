@@ -102,6 +102,11 @@ class PoseWindows:
         return (self.triples[:, 0] >= 0) & ~self.collinear
 
 
+def twice_signed_area(p: np.ndarray) -> np.ndarray:
+    """Twice the signed plan area of triangles ``p`` (T, 3, >= 2) [m^2]: positive when counter-clockwise."""
+    return (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+
+
 def flatness(p: np.ndarray) -> np.ndarray:
     """Triangle height over longest side, for triangles ``p`` of shape (..., 3, 3) [m]."""
     e = np.stack([p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 1, :], p[..., 0, :] - p[..., 2, :]], -2)
@@ -177,8 +182,7 @@ def canonical_windows(triples: np.ndarray, xyz: np.ndarray, tolerance_m: float =
     if len(t) == 0:
         return WindowSet(np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int64), np.zeros(0, dtype=bool))
     p = xyz[t]
-    cross_z = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-    t = np.where((cross_z < 0)[:, None], t[:, [0, 2, 1]], t)  # counter-clockwise in plan
+    t = np.where((twice_signed_area(p) < 0)[:, None], t[:, [0, 2, 1]], t)  # counter-clockwise in plan
     p = xyz[t]
     sides = np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)  # side k joins vertex k and k+1
     cls = _length_classes(sides.ravel(), tolerance_m).reshape(-1, 3)
