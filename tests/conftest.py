@@ -1,6 +1,22 @@
-"""Shared test helpers: synthetic layouts."""
+"""Shared test helpers: synthetic layouts, and the bundled 512 grid planned once per run."""
+
+from pathlib import Path
 
 import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def plan512_dir(tmp_path_factory) -> Path:
+    """``grid-512.yaml`` planned once for the whole run (firmware and report, no map); read it, never write into it."""
+    from planner.cli import main as plan_main
+
+    out = tmp_path_factory.mktemp("shared") / "p512"
+    plan_main([str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "-o", str(out), "--no-map", "--json",
+               "--error-poses-per-m2", "0"])
+    return out
 
 
 def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: float = 0.0,

@@ -14,7 +14,6 @@ from pathlib import Path
 import pytest
 import serial
 
-from planner.cli import main as plan_main
 from planner.firmware import SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash import protocol_sim
 from planner.flash.driver import Flash, SimulatedDriver
@@ -27,10 +26,9 @@ KEY = bytes(range(32))
 
 
 @pytest.fixture(scope="module")
-def site(tmp_path_factory):
+def site(tmp_path_factory, plan512_dir):
     base = tmp_path_factory.mktemp("site")
-    plan_main([str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "-o", str(base / "p512"), "--no-map", "--json",
-               "--error-poses-per-m2", "0"])
+    (base / "p512").symlink_to(plan512_dir, target_is_directory=True)
     (base / "key").write_text(KEY.hex())
     return base
 

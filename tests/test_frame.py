@@ -5,7 +5,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner.cli import main as plan_main
 from planner.errors import InputError, PlanningError
 from planner.frame import FOUR_B_SIX_B, LINE_CODES, decode_stream, frame_chips, longest_run
 from planner.modulation import choose_timing
@@ -51,11 +50,8 @@ def test_decode_needs_a_whole_frame():
 
 
 @pytest.fixture(scope="module")
-def plan_512(tmp_path_factory):
-    out = tmp_path_factory.mktemp("p") / "g512"
-    plan_main([str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "-o", str(out), "--no-map", "--json",
-               "--error-poses-per-m2", "0"])
-    return load_plan(out / "plan.yaml")
+def plan_512(plan512_dir):
+    return load_plan(plan512_dir / "plan.yaml")
 
 
 def test_every_luminaire_of_the_512_plan_decodes_from_a_random_phase(plan_512):

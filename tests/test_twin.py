@@ -26,13 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def plan512(tmp_path_factory):
-    from planner.cli import main as plan_main
-
-    out = tmp_path_factory.mktemp("twin") / "p512"
-    plan_main([str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "-o", str(out), "--no-map", "--no-report",
-               "--no-firmware", "--error-poses-per-m2", "0", "--json"])
-    return out / "plan.yaml"
+def plan512(plan512_dir):
+    return plan512_dir / "plan.yaml"
 
 
 # --- pieces ---------------------------------------------------------------------------------------

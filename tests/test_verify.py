@@ -97,22 +97,23 @@ def test_window_scheme_plans_never_share_a_key(rows, cols, jitter, seed):
     assignment, check = assign_window(xyz, radii, None, build_graph(xy), Camera(), seed=seed, time_budget=1.0,
                                       per_m2=150)
     assert check.conflicts == []
-    # By brute force: no sampled window reads like any other triple of the site.
+    # By brute force: no sampled window reads like any other triple of the site. Every triple,
+    # turned counter-clockwise, in each of its three rotations, indexed by its IDs in that order.
     ids, tol = assignment.ids, check.tolerance_m
     every = np.array(list(itertools.combinations(range(len(xy)), 3)))
+    every = every[[ccw(t, xy) or ccw(t[[0, 2, 1]], xy) for t in every]]  # three in a row never decode
+    every = np.array([t if ccw(t, xy) else t[[0, 2, 1]] for t in every])
+    by_ids: dict = {}
+    for r in range(3):
+        turned = np.roll(every, -r, axis=1)
+        for t, key in zip(turned, map(tuple, ids[turned].tolist())):
+            by_ids.setdefault(key, []).append(t)
+    sides = lambda t: np.linalg.norm(xy[np.roll(t, -1, axis=-1)] - xy[t], axis=-1)
     for w in check.windows.windows:
-        for r in range(3):
-            v = np.roll(w, -r)
-            same_ids = (ids[every] == ids[v]).all(axis=1)
-            for u in every[same_ids]:
-                if set(u) == set(w):
-                    continue
-                for order in (u, u[[0, 2, 1]]):  # u in the orientation and rotation matching v
-                    for q in range(3):
-                        o = np.roll(order, -q)
-                        if (ids[o] == ids[v]).all() and ccw(o, xy) and ccw(v, xy):
-                            sides = lambda t: np.linalg.norm(xy[np.roll(t, -1)] - xy[t], axis=1)
-                            assert np.abs(sides(o) - sides(v)).max() > tol, (w, o)
+        v = w if ccw(w, xy) else w[[0, 2, 1]]
+        same = np.array([u for u in by_ids.get(tuple(ids[v].tolist()), []) if set(u) != set(w)]).reshape(-1, 3)
+        alike = np.abs(sides(same) - sides(v)).max(axis=1, initial=0.0) <= tol
+        assert not alike.any(), (w, same[alike][:3])
     # and on an independent pose sample too: the window set protects what no sample produced
     again = verify_plan(xyz, radii, assignment.ids, None, Camera(), per_m2=150, seed=seed + 7)
     assert again.count(AMBIGUOUS) == 0
