@@ -17,13 +17,11 @@ from .errors import PositioningError
 from .locate import METHODS
 from .observation import NOISE_PX, observe
 from .plot_style import save_png, styled
+from .defaults import ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 
-# The paper's rig (Table 2), metres. The LED radius is not given: 0.1 m is assumed,
-# the size of a common 18 W round panel (about 0.2 m across).
+# The paper's rig (Table 2), metres; its LED radius and tilts are in planner.defaults.
 PAPER_LEDS_M = np.array([[0.0, 0.3, 2.5], [0.0, -0.3, 2.5], [0.5, 0.0, 2.5], [-0.5, 0.0, 2.5]])
-PAPER_RADIUS_M = 0.1
 PAPER_HEIGHT_M = 0.7
-PAPER_TILTS_DEG = (0, 20, 30, 40)
 PAPER_TABLE3_CM = {0: (2.76, 4.287), 20: (7.16, 11.43), 30: (6.74, 11.63), 40: (11.72, 20.31)}
 """Table 3 as printed: tilt [deg] -> (mean error, 90 % bound) [cm]."""
 
@@ -135,8 +133,6 @@ def plot_cdf(results: list[Trials], path) -> None:
     save_png(fig, path)
 
 
-ERROR_POSES_PER_M2 = 4.0
-"""Default density of the poses an error map samples [1/m2] (each is observed and located)."""
 
 ERROR_MAX_POSES = 1000
 """Most poses an error map simulates (about 6 s); larger sites get a sparser sample and larger squares."""

@@ -15,10 +15,8 @@ import sys
 from pathlib import Path
 
 from . import cli
-from .accuracy import (HAND_JITTER_DEG, PAPER_RADIUS_M, PAPER_TILTS_DEG, paper_experiment, plot_cdf, stats_cm,
-                       table3_text)
+from .defaults import NOISE_PX, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from .errors import UsageError
-from .observation import NOISE_PX
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,6 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     cdf = Path(args.cdf)
     if not cdf.resolve().parent.is_dir():
         raise UsageError(f"--cdf {args.cdf}: directory {cdf.parent} does not exist")
+    from .accuracy import HAND_JITTER_DEG, paper_experiment, plot_cdf, stats_cm, table3_text
+
     results = paper_experiment(tilts, args.trials, args.noise_px, args.radius, args.seed)
     tmp = cdf.with_name(f".{cdf.name}.tmp.png")
     plot_cdf(results, tmp)
@@ -86,6 +86,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _finite(r) -> bool:
+    from .accuracy import stats_cm
+
     return all(math.isfinite(v) for e in r.errors.values() for v in stats_cm(e))
 
 

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from .camera import Camera, disc_dual_conic, project_discs_at
+from .defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
 from .ellipse import centre_and_shape
 
 
@@ -45,13 +46,13 @@ class Sensor:
         Shot noise: its variance is ``shot_dn`` times the signal [DN].
     """
 
-    exposure_s: float = 25e-6
-    blur_px: float = 0.8
+    exposure_s: float = SENSOR_EXPOSURE_S
+    blur_px: float = SENSOR_BLUR_PX
     dark_dn: float = 6.0
     led_dn: float = 210.0
     led_spread: float = 0.15
     off_level: float = 0.0
-    read_noise_dn: float = 2.0
+    read_noise_dn: float = SENSOR_READ_NOISE_DN
     shot_dn: float = 0.5
 
 

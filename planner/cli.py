@@ -16,19 +16,15 @@ import time
 import traceback
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from . import __version__
-from .camera import Camera
+from .defaults import (CONGRUENCE_TOLERANCE_M, DRIVER_MAX_HZ, ERROR_POSES_PER_M2, INSTALL_TOLERANCE_M, LINE_CODE_NAMES,
+                       LOCATE_METHODS, POSES_PER_M2, SCHEMES, UNIT_TO_M)
 from .errors import PlannerError, UsageError
-from .accuracy import ERROR_POSES_PER_M2
-from .frame import LINE_CODES
-from .layout import UNIT_TO_M
-from .locate import METHODS
-from .modulation import DRIVER_MAX_HZ
-from .pipeline import (SCHEMES, FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
-                       write_outputs)
-from .report import length_text
-from .window_set import INSTALL_TOLERANCE_M
-from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
+
+if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
+    from .camera import Camera
 
 
 class _Parser(argparse.ArgumentParser):
@@ -111,13 +107,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "detected (default 1: no check bits)")
     _add_verify_flags(p)
     g = p.add_argument_group("modulation")
-    g.add_argument("--line-code", choices=sorted(LINE_CODES), default="manchester",
+    g.add_argument("--line-code", choices=list(LINE_CODE_NAMES), default="manchester",
                    help="line code of the frames: manchester (2 chips per bit, runs <= 3) or 4b6b (IEEE 802.15.7, "
                    "1.5 chips per bit, runs <= 5); default manchester")
     g.add_argument("--driver-max-hz", type=_positive_float, default=DRIVER_MAX_HZ, metavar="HZ",
                    help=f"fastest chip rate the luminaire drivers switch (default {DRIVER_MAX_HZ:g})")
     g = p.add_argument_group("accuracy")
-    g.add_argument("--locate-method", choices=sorted(METHODS), default="perspective",
+    g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
                    help="positioning method the error map simulates (default perspective; paper: the paper's "
                    "weak-perspective method)")
     g.add_argument("--error-poses-per-m2", type=_non_negative_float, default=ERROR_POSES_PER_M2, metavar="N",
@@ -164,9 +160,11 @@ def _add_verify_flags(p: argparse.ArgumentParser) -> None:
 
 
 def _camera(args) -> Camera:
+    from .camera import Camera
+    from .camera_file import read_camera
+
     if not args.camera:
         return Camera()
-    from .camera_file import read_camera
 
     return read_camera(args.camera)
 
@@ -179,6 +177,8 @@ def _progress(message: str) -> None:
 def main(argv: list[str] | None = None) -> dict:
     """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
     args = build_parser().parse_args(argv)
+    from .pipeline import FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
+
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
                          if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
@@ -250,6 +250,8 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 def _print_summary(s: dict) -> None:
+    from .report import length_text
+
     print(f"vlp-plan {__version__}: {s['layout']}")
     print(f"  layout   {s['luminaires']} luminaires; unit {s['unit']} ({s['unit_reason']})")
     for note in s["notes"]:

@@ -20,24 +20,11 @@ from .errors import InputError
 from .graph import build_graph
 from .layout import Layout, Luminaire
 from .pipeline import PlanOptions, make_plan
+from .defaults import CURVE_SIZES, PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO  # noqa: F401 (re-exported)
 
 PAPER_PRINTED = {32: (5, 4), 256: (8, 6), 512: (9, 6)}
 """The paper's printed figures per luminaire count: (naive bits, the scheme's bits) (section 2.2)."""
 
-PAPER_LAYOUTS = {32: "grid-32.yaml", 256: "grid-256.yaml", 512: "grid-512.yaml"}
-"""The bundled layouts (in ``layouts/``) of the paper's three cases."""
-
-CURVE_SIZES = (16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 10000, 30000, 100000)
-"""Default luminaire counts of the curve."""
-
-PITCH_M = 0.5
-"""Lattice pitch of the curve's sites [m] (as ``benchmarks/run.py``)."""
-
-WINDOW_UP_TO = 4096
-"""Largest curve site whose window scheme is computed by default (about 30 s at 4096, 9 min at 100,000)."""
-
-PAPER_UP_TO = 30000
-"""Largest curve site whose paper scheme is computed by default (about 15 s at 30,000, 100 s at 100,000)."""
 
 Progress = Callable[[str], None]
 

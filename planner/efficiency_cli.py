@@ -15,13 +15,15 @@ import sys
 import tempfile
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from . import cli
-from .efficiency import (CURVE_SIZES, PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO, CurveRow, TableRow, curve,
-                         lattice_layout, site_figures, table_row)
+from .defaults import CURVE_SIZES, PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 from .errors import UsageError
-from .pipeline import read_layout
-from .plan import load_plan
-from .plot_style import save_png, styled
+from .plot_style import styled
+
+if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
+    from .efficiency import CurveRow, TableRow
 
 DEFAULT_LAYOUTS = Path(__file__).resolve().parent.parent / "layouts"
 MAX_SIZE = 10_000_000
@@ -86,6 +88,10 @@ def main(argv: list[str] | None = None) -> int:
     missing = [str(p) for p in paths.values() if not p.is_file()]
     if missing and args.layouts:
         raise UsageError(f"{missing[0]}: no such file; give --layouts DIR with grid-32/256/512.yaml")
+    from .efficiency import curve, lattice_layout, site_figures, table_row
+    from .pipeline import read_layout
+    from .plan import load_plan
+
     built = bool(missing)  # an installed copy without the repository: the same grids, built in code
     site = site_figures(load_plan(args.plan), args.plan) if args.plan else None
     progress = _progress if sys.stderr.isatty() else None
@@ -180,6 +186,8 @@ def write_plot(rows: list[CurveRow], path: Path) -> None:
     """Draw bits against luminaires (log x), one line per series, written atomically to ``path``."""
     import matplotlib.pyplot as plt
     from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter
+
+    from .plot_style import save_png
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for attr, label, grey, ls, marker, size in SERIES:

@@ -19,12 +19,6 @@ from pathlib import Path
 
 from . import cli
 from .errors import InputError, UsageError
-from .firmware import file_name, parse_config_image
-from .flash.flasher import flash_driver, sign_image
-from .flash.journal import Journal
-from .flash.link import Link
-from .flash.wire import ANY_ADDRESS
-from .plan import load_plan, plan_hash
 
 EXIT_FAILED = 3
 
@@ -125,6 +119,9 @@ def _addresses(doc: dict, path: str | None) -> dict[str, int]:
 
 
 def _image(doc_path: Path, entry: dict, digest: str, key: bytes | None) -> bytes:
+    from .firmware import file_name, parse_config_image
+    from .flash.flasher import sign_image
+
     path = doc_path.parent / "firmware" / file_name(entry["name"]) / "vlp_config.bin"
     try:
         image = path.read_bytes()
@@ -143,6 +140,12 @@ def main(argv: list[str] | None = None) -> int:
     if not args.plan:
         raise UsageError("give a PLAN (see vlp-flash --help)")
     doc_path = Path(args.plan)
+    from .flash.flasher import flash_driver
+    from .flash.journal import Journal
+    from .flash.link import Link
+    from .flash.wire import ANY_ADDRESS
+    from .plan import load_plan, plan_hash
+
     doc = load_plan(doc_path)
     digest = plan_hash(doc_path.read_text("utf-8"))
     targets = _targets(doc, args)

@@ -15,6 +15,7 @@ from matplotlib.path import Path as _PolygonPath
 from scipy.spatial import cKDTree
 
 from .errors import InputError
+from .defaults import UNIT_TO_M  # noqa: F401 (its importers read it here)
 
 DEFAULT_RADIUS_M = 0.1
 """LED radius when the drawing or layout does not give one [m] (PRODUCT.md)."""
@@ -23,8 +24,6 @@ DEFAULT_MOUNT_HEIGHT_M = 2.5
 """Ceiling height when neither drawing nor flags give one [m] (the paper's rig)."""
 
 
-UNIT_TO_M = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254, "ft": 0.3048}
-"""Length units accepted in drawings, layout files and ``--units`` [m per unit]."""
 
 
 @dataclass(frozen=True)

@@ -19,9 +19,8 @@ from .errors import InputError, PositioningError
 from .fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
 from .pose_fit import initial_poses, locate_perspective
 from .positioning import distance_weak_perspective, locate_paper
+from .defaults import MAX_RESIDUAL_PX
 
-MAX_RESIDUAL_PX = 5.0
-"""Default largest RMS ellipse residual [px] of a pose that explains an image."""
 
 SPACING_TOLERANCE = 0.35
 """Relative error allowed between a luminaire pair's spacing and its weak-perspective estimate."""

@@ -13,17 +13,16 @@ import argparse
 import json
 import math
 import sys
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from . import cli
-from .camera import Camera, rotation_from_angles
+from .defaults import LOCATE_METHODS, MAX_RESIDUAL_PX, NOISE_PX
 from .errors import UsageError
-from .locate import MAX_RESIDUAL_PX, METHODS, Site, Snapshot, locate
-from .observation import NOISE_PX, observe
-from .plan import load_plan
-from .fix import angles_of
-from .snapshot_file import read_snapshot, snapshot_document
+
+if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
+    import numpy as np
+
+    from .locate import Site, Snapshot
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan")
     p.add_argument("observation", metavar="OBSERVATION.json", nargs="?",
                    help="the receiver's camera and LED ellipses (JSON)")
-    p.add_argument("--method", choices=sorted(METHODS), default="perspective",
+    p.add_argument("--method", choices=list(LOCATE_METHODS), default="perspective",
                    help="perspective: exact pose fit over every LED (default); paper: the paper's weak-perspective "
                    "distances and trilateration (Eq. 1-14)")
     p.add_argument("--max-residual-px", type=cli._positive_float, default=MAX_RESIDUAL_PX, metavar="PX",
@@ -52,6 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _pose(text: str, flag: str = "--simulate") -> tuple[np.ndarray, np.ndarray]:
+    import numpy as np
+
+    from .camera import rotation_from_angles
+
     try:
         vals = [float(v) for v in text.split(",")]
     except ValueError:
@@ -62,6 +65,13 @@ def _pose(text: str, flag: str = "--simulate") -> tuple[np.ndarray, np.ndarray]:
 
 
 def simulate(doc: dict, pose: str, noise_px: float, seed: int) -> dict:
+    import numpy as np
+
+    from .camera import Camera
+    from .locate import Site, Snapshot
+    from .observation import observe
+    from .snapshot_file import snapshot_document
+
     site = Site.from_plan(doc)
     camera = Camera.from_dict(doc.get("camera") or {})
     position, rotation = _pose(pose)
@@ -71,6 +81,8 @@ def simulate(doc: dict, pose: str, noise_px: float, seed: int) -> dict:
 
 
 def result_document(site: Site, snap: Snapshot, found, max_residual_px: float = MAX_RESIDUAL_PX) -> dict:
+    from .fix import angles_of
+
     fix = found.fix
     tilt, az, roll = (math.degrees(a) for a in angles_of(fix.rotation))
     return {
@@ -86,6 +98,10 @@ def result_document(site: Site, snap: Snapshot, found, max_residual_px: float = 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from .locate import Site, locate
+    from .plan import load_plan
+    from .snapshot_file import read_snapshot
+
     doc = load_plan(args.plan)
     if args.simulate:
         print(json.dumps(simulate(doc, args.simulate, args.noise_px, args.seed), indent=2))

@@ -27,12 +27,11 @@ from .camera import Camera, Poses
 from .errors import PlanningError
 from .frame import LineCode, frame_chips
 from .windows import find_windows, sample_poses, working_area
+from .defaults import DRIVER_MAX_HZ
 
 FLICKER_HZ = 200.0
 """Lowest allowed repetition of the slowest on/off cycle [Hz] (IEEE 802.15.7's flicker guidance)."""
 
-DRIVER_MAX_HZ = 20_000.0
-"""Default fastest chip rate a luminaire driver switches cleanly [Hz] (``--driver-max-hz``)."""
 
 ROWS_PER_CHIP = 2.0
 """Image rows a chip must span to be read."""

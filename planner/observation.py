@@ -15,9 +15,8 @@ import numpy as np
 
 from .camera import Camera, disc_dual_conic, project_discs_at
 from .ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
+from .defaults import NOISE_PX
 
-NOISE_PX = 0.5
-"""Default standard deviation of an edge point's position [px] (before rounding)."""
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ from .window_proof import prove_window_set
 from .window_set import INSTALL_TOLERANCE_M
 from .window_scheme import assign_unique, assign_window
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
+from .defaults import SCHEMES
 
 LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
 
@@ -46,7 +47,6 @@ class ReadOptions:
     radius_m: float | None = None
 
 
-SCHEMES = ("auto", "paper", "window", "unique")
 
 
 @dataclass(frozen=True)

@@ -15,14 +15,14 @@ from typing import TYPE_CHECKING
 import yaml
 
 from . import __version__
-from .assignment import Assignment
-from .camera import Camera
 from .errors import InputError
 from .yaml_io import load_yaml
-from .graph import NeighbourGraph
-from .layout import Layout
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
+    from .assignment import Assignment
+    from .camera import Camera
+    from .graph import NeighbourGraph
+    from .layout import Layout
     from .accuracy import SiteAccuracy
     from .modulation import Modulation
     from .check_bits import CheckCode

@@ -13,10 +13,6 @@ from pathlib import Path
 
 from . import cli
 from .errors import UsageError
-from .flash.journal import Journal
-from .plan import load_plan, plan_hash
-from .report import checklist
-from .report_files import write_report
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +34,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> dict:
     args = build_parser().parse_args(argv)
+    from .flash.journal import Journal
+    from .plan import load_plan, plan_hash
+    from .report import checklist
+    from .report_files import write_report
+
     plan_path = Path(args.plan)
     doc = load_plan(plan_path)
     digest = plan_hash(plan_path.read_text("utf-8"))

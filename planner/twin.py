@@ -25,10 +25,9 @@ from .errors import InputError, PlannerError
 from .locate import Site, locate
 from .observation import seen_leds
 from .receiver import Blob, Modulation, decode_frame, read_blobs, snapshot
+from .defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 
 STAGES = ("blobs", "ids", "identify", "position")
-TOLERANCE_M = 0.10
-"""A fix within this distance of the true position [m] counts as located."""
 
 MATCH_SHARE = 0.25
 """A blob belongs to an LED if its ellipse centre lies within this share of the LED image's minor axis."""

@@ -14,18 +14,19 @@ import json
 import math
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from . import cli
-from .camera_frame import Sensor
+from .defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
+from .defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from .errors import UsageError
-from .locate_cli import _pose
-from .plan import load_plan
-from .report import length_text
-from .twin import STAGES, TOLERANCE_M, PoseResult, Twin, covered_poses, run_pose, summary
+
+if TYPE_CHECKING:  # the stages (OpenCV, SciPy) load when the command runs, not when it parses
+    import numpy as np
+
+    from .camera_frame import Sensor
+    from .twin import PoseResult
 
 EXIT_FAILED = 3
 
@@ -50,13 +51,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="worker processes for a batch (default: one per core)")
     g.add_argument("--save-failures", metavar="DIR", help="batch: write each failed pose's frame as PNG into DIR")
     g = p.add_argument_group("camera and sensor")
-    g.add_argument("--exposure-us", type=cli._positive_float, default=Sensor.exposure_s * 1e6, metavar="US",
-                   help=f"row exposure [us] (default {Sensor.exposure_s * 1e6:g})")
-    g.add_argument("--blur-px", type=float, default=Sensor.blur_px, metavar="PX",
-                   help=f"optics blur, Gaussian sigma [px] (default {Sensor.blur_px:g})")
-    g.add_argument("--read-noise-dn", type=float, default=Sensor.read_noise_dn, metavar="DN",
-                   help=f"read noise sigma [DN of 255] (default {Sensor.read_noise_dn:g})")
-    g.add_argument("--off-level", type=float, default=Sensor.off_level, metavar="SHARE",
+    g.add_argument("--exposure-us", type=cli._positive_float, default=SENSOR_EXPOSURE_S * 1e6, metavar="US",
+                   help=f"row exposure [us] (default {SENSOR_EXPOSURE_S * 1e6:g})")
+    g.add_argument("--blur-px", type=float, default=SENSOR_BLUR_PX, metavar="PX",
+                   help=f"optics blur, Gaussian sigma [px] (default {SENSOR_BLUR_PX:g})")
+    g.add_argument("--read-noise-dn", type=float, default=SENSOR_READ_NOISE_DN, metavar="DN",
+                   help=f"read noise sigma [DN of 255] (default {SENSOR_READ_NOISE_DN:g})")
+    g.add_argument("--off-level", type=float, default=0.0, metavar="SHARE",
                    help="light of an 'off' chip as a share of 'on' (default 0)")
     g = p.add_argument_group("grading")
     g.add_argument("--tolerance-cm", type=cli._positive_float, default=TOLERANCE_M * 100, metavar="CM",
@@ -69,6 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _sensor(args) -> Sensor:
+    from .camera_frame import Sensor
+
     if args.blur_px < 0 or args.read_noise_dn < 0 or not 0 <= args.off_level < 1:
         raise UsageError("--blur-px and --read-noise-dn must be >= 0, --off-level in [0, 1)")
     return Sensor(exposure_s=args.exposure_us * 1e-6, blur_px=args.blur_px, read_noise_dn=args.read_noise_dn,
@@ -79,10 +82,16 @@ _WORKER: dict = {}
 
 
 def _init(doc: dict, sensor: Sensor, tolerance_m: float) -> None:
+    from .twin import Twin
+
     _WORKER.update(twin=Twin.from_plan(doc, sensor), tolerance_m=tolerance_m)
 
 
 def _one(task) -> PoseResult:
+    import numpy as np
+
+    from .twin import run_pose
+
     k, seed, position, rotation, angles = task
     twin = _WORKER["twin"]
     result, _ = run_pose(twin, position, rotation, angles, np.random.default_rng([seed, k]), _WORKER["tolerance_m"])
@@ -105,6 +114,12 @@ def _pose_text(r: PoseResult) -> str:
 
 
 def run_batch(doc: dict, args, sensor: Sensor) -> list[PoseResult]:
+    from concurrent.futures import ProcessPoolExecutor
+
+    import numpy as np
+
+    from .twin import Twin, covered_poses, run_pose
+
     twin = Twin.from_plan(doc, sensor)
     poses = covered_poses(twin, args.poses, args.seed)
     rotations = poses.rotation
@@ -147,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.png and not Path(args.png).resolve().parent.is_dir():
         raise UsageError(f"--png {args.png}: directory {Path(args.png).parent} does not exist")
     sensor = _sensor(args)
+    from .plan import load_plan
+    from .twin import summary
+
     doc = load_plan(args.plan)
     if args.pose:
         return _single(doc, args, sensor)
@@ -162,6 +180,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _print_batch(args, s: dict, failures: list[dict]) -> None:
+    from .report import length_text
+
     tol = args.tolerance_cm
     print(f"vlp-twin: {args.plan}: {s['poses']} covered poses (seed {args.seed}); exposure {args.exposure_us:g} us, "
           f"blur {args.blur_px:g} px, read noise {args.read_noise_dn:g} DN")
@@ -177,6 +197,12 @@ def _print_batch(args, s: dict, failures: list[dict]) -> None:
 
 
 def _single(doc: dict, args, sensor: Sensor) -> int:
+    import numpy as np
+
+    from .locate_cli import _pose
+    from .report import length_text
+    from .twin import Twin, run_pose
+
     position, rotation = _pose(args.pose, "--pose")
     twin = Twin.from_plan(doc, sensor)
     angles = tuple(float(v) for v in args.pose.split(",")[3:])

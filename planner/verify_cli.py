@@ -15,15 +15,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from . import cli
-from .camera import Camera
+from .defaults import INSTALL_TOLERANCE_M
 from .errors import UsageError
-from .plan import load_plan
-from .verify import check_window_set, side_bound, verify_plan
-from .window_proof import prove_window_set
-from .window_set import INSTALL_TOLERANCE_M
 
 EXIT_AMBIGUOUS = 3
 
@@ -50,6 +44,13 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.map and not Path(args.map).resolve().parent.is_dir():
         raise UsageError(f"--map {args.map}: directory {Path(args.map).parent} does not exist")
+    import numpy as np
+
+    from .camera import Camera
+    from .plan import load_plan
+    from .verify import check_window_set, side_bound, verify_plan
+    from .window_proof import prove_window_set
+
     doc = load_plan(args.plan)
     lums = doc["luminaires"]
     xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums], dtype=float)
@@ -82,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> None:
     """Coverage map of a loaded plan (rebuilds the few plan objects the map needs)."""
+    import numpy as np
+
     from .assignment import Assignment
     from .graph import build_graph
     from .layout import Layout, Luminaire

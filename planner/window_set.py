@@ -26,12 +26,11 @@ from scipy.spatial import cKDTree
 
 from .rivals import site_triples
 from .windows import MIN_FLATNESS, twice_signed_area
+from .defaults import INSTALL_TOLERANCE_M  # noqa: F401 (its importers read it here)
 
 NEIGHBOURS = 32
 """LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
 
-INSTALL_TOLERANCE_M = 0.03
-"""Default distance by which an installed luminaire may lie from its drawn position [m]."""
 
 SAME_HEIGHT_M = 1e-3
 """LEDs whose heights differ by less than this count as one ceiling plane [m]."""

@@ -19,6 +19,7 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.stats import qmc
 
 from .camera import Camera, Poses, project_discs
+from .defaults import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 CANDIDATES = 24
 """LEDs examined per pose: those nearest the point where the optical axis meets the ceiling."""
@@ -26,11 +27,7 @@ CANDIDATES = 24
 MIN_FLATNESS = 0.1
 """A triangle whose height is under this share of its longest side counts as collinear."""
 
-CONGRUENCE_TOLERANCE_M = 0.05
-"""Side lengths closer than this are indistinguishable to the receiver [m]."""
 
-POSES_PER_M2 = 400.0
-"""Default density of sampled poses over the working area [1/m^2]."""
 
 _BATCH = 20000
 _SOBOL_CHUNK_LOG2 = 16

@@ -1,0 +1,71 @@
+"""The defaults a user meets on the command line, in one light module (no NumPy, no solver).
+
+The stages import their defaults from here, and the commands build their parsers from
+here without importing the stages, so ``--help`` answers at once.
+"""
+
+UNIT_TO_M = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254, "ft": 0.3048}
+"""Length units accepted in drawings, layout files and ``--units`` [m per unit]."""
+
+SCHEMES = ("auto", "paper", "window", "unique")
+"""ID schemes ``vlp-plan --scheme`` offers."""
+
+LINE_CODE_NAMES = ("4b6b", "manchester")
+"""Line codes of the frames (:data:`planner.frame.LINE_CODES` holds them)."""
+
+LOCATE_METHODS = ("paper", "perspective")
+"""Positioning methods (:data:`planner.locate.METHODS` holds them)."""
+
+DRIVER_MAX_HZ = 20_000.0
+"""Default fastest chip rate a luminaire driver switches cleanly [Hz] (``--driver-max-hz``)."""
+
+ERROR_POSES_PER_M2 = 4.0
+"""Default density of the poses an error map samples [1/m2] (each is observed and located)."""
+
+POSES_PER_M2 = 400.0
+"""Default density of sampled poses over the working area [1/m^2]."""
+
+CONGRUENCE_TOLERANCE_M = 0.05
+"""Side lengths closer than this are indistinguishable to the receiver [m]."""
+
+INSTALL_TOLERANCE_M = 0.03
+"""Default distance by which an installed luminaire may lie from its drawn position [m]."""
+
+NOISE_PX = 0.5
+"""Default standard deviation of an edge point's position [px] (before rounding)."""
+
+MAX_RESIDUAL_PX = 5.0
+"""Default largest RMS ellipse residual [px] of a pose that explains an image."""
+
+TWIN_TOLERANCE_M = 0.10
+"""A twin's fix within this distance of the true position [m] counts as located."""
+
+PAPER_RADIUS_M = 0.1
+"""LED radius of the paper's rig [m]: not given there; assumed, the size of a common 18 W round panel."""
+
+PAPER_TILTS_DEG = (0, 20, 30, 40)
+"""Tilts of the paper's Table 3 [deg]."""
+
+PAPER_LAYOUTS = {32: "grid-32.yaml", 256: "grid-256.yaml", 512: "grid-512.yaml"}
+"""The bundled layouts (in ``layouts/``) of the paper's three cases."""
+
+CURVE_SIZES = (16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 10000, 30000, 100000)
+"""Default luminaire counts of the curve."""
+
+PITCH_M = 0.5
+"""Lattice pitch of the curve's sites [m] (as ``benchmarks/run.py``)."""
+
+WINDOW_UP_TO = 4096
+"""Largest curve site whose window scheme is computed by default (about 30 s at 4096, 9 min at 100,000)."""
+
+PAPER_UP_TO = 30000
+"""Largest curve site whose paper scheme is computed by default (about 15 s at 30,000, 100 s at 100,000)."""
+
+SENSOR_EXPOSURE_S = 25e-6
+"""Default row exposure of the twin's sensor [s]."""
+
+SENSOR_BLUR_PX = 0.8
+"""Default optics blur of the twin's sensor, Gaussian sigma [px]."""
+
+SENSOR_READ_NOISE_DN = 2.0
+"""Default read noise of the twin's sensor, sigma [DN of 255]."""
