@@ -38,8 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--cdf", default="vlp-accuracy-cdf.png", metavar="PNG",
                    help="where to draw the CDF plot (default vlp-accuracy-cdf.png)")
-    p.add_argument("--json", action="store_true", help="print the figures as JSON instead of the table")
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    cli.common_flags(p, "print the figures as JSON instead of the table")
     return p
 
 

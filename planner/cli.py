@@ -62,6 +62,13 @@ def _non_negative_float(text: str) -> float:
     return _number(text, 0.0, strict=False)
 
 
+def common_flags(p: argparse.ArgumentParser, json_help: str) -> None:
+    """The flags every command has, last in its help: ``--json``, ``-v/--verbose``, ``--version``."""
+    p.add_argument("--json", action="store_true", help=json_help)
+    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"{p.prog} {__version__}")
+
+
 EXIT_AMBIGUOUS = 3
 LOW_COVERAGE = 0.5
 """Below this share of decodable poses, vlp-plan warns that the site is poorly covered."""

@@ -69,8 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "layouts/ when present, else the same 0.5 m grids built in code)")
     p.add_argument("--plot", default="vlp-efficiency.png", metavar="PNG",
                    help="where to draw the curve (default vlp-efficiency.png)")
-    p.add_argument("--json", action="store_true", help="print the figures as JSON instead of the text table")
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    cli.common_flags(p, "print the figures as JSON instead of the text table")
     return p
 
 

@@ -13,7 +13,9 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
+import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -41,7 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
     p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
     p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    cli.common_flags(p, "print the outcome per driver as JSON on stdout (progress goes to stderr); needs --bus or "
+                     "--dry-run")
     return p
 
 
@@ -89,6 +92,11 @@ def open_port(url: str, baud: int):
         if "lock" in text.lower() or "busy" in text.lower():
             raise UsageError(f"--port {url}: busy: another program holds it; close it and retry") from None
         raise UsageError(f"--port {url}: cannot open ({text}); serial ports here: {_ports_text()}") from None
+
+
+def _shown_port(url: str) -> str:
+    """``url`` as the journal and ``--json`` record it: a ``sim://`` key is never written out."""
+    return re.sub(r"key=[^&]*", "key=<hidden>", url)
 
 
 def _targets(doc: dict, args) -> list[dict]:
@@ -139,6 +147,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not args.plan:
         raise UsageError("give a PLAN (see vlp-flash --help)")
+    if args.json and not (args.bus or args.dry_run):
+        raise UsageError("--json needs --bus or --dry-run: interactive mode talks to the installer on this terminal")
+    say = sys.stderr if args.json else sys.stdout  # with --json, stdout carries the JSON document alone
+    report: list[dict] = []
     doc_path = Path(args.plan)
     from .flash.flasher import flash_driver
     from .flash.journal import Journal
@@ -158,8 +170,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.dry_run:
         for e in targets:
             skip = args.resume and journal.done(e["name"], hashlib.sha256(images[e["name"]]).hexdigest())
+            action = "skip" if skip else "verify" if args.verify_only else "flash"
+            report.append({"name": e["name"], "id": e["id"], "address": where[e["name"]] if args.bus else None,
+                           "action": action})
             print(f"{e['name']:<16} id {e['id']:<6} {'address ' + str(where[e['name']]) if args.bus else 'plug in'}"
-                  f"  {'skip (journal: verified)' if skip else 'verify' if args.verify_only else 'flash'}")
+                  f"  {'skip (journal: verified)' if skip else action}", file=say)
+        if args.json:
+            print(json.dumps({"plan": str(doc_path), "dry_run": True, "drivers": report}, indent=2))
         return 0
     if not args.port:
         raise UsageError("give --port PORT (vlp-flash --list-ports lists them)")
@@ -172,7 +189,8 @@ def main(argv: list[str] | None = None) -> int:
         for k, e in enumerate(targets, 1):
             name, image = e["name"], images[e["name"]]
             if args.resume and journal.done(name, hashlib.sha256(image).hexdigest()):
-                print(f"[{k}/{len(targets)}] {name}: skipped (journal: verified)")
+                print(f"[{k}/{len(targets)}] {name}: skipped (journal: verified)", file=say)
+                report.append({"name": name, "id": e["id"], "status": "skipped", "verified": True})
                 continue
             if not args.bus:
                 answer = input(f"[{k}/{len(targets)}] plug the driver of {name} (ID {e['id']}, at x {e['x']:.2f} m, "
@@ -183,10 +201,14 @@ def main(argv: list[str] | None = None) -> int:
                     continue
             address = where.get(name, ANY_ADDRESS)
             result = flash_driver(link, address, image, verify_only=args.verify_only)
-            journal.record(name, e["id"], f"{args.port}@{address}" if args.bus else args.port, result)
+            journal.record(name, e["id"], f"{_shown_port(args.port)}@{address}" if args.bus else _shown_port(args.port),
+                           result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
             print(f"[{k}/{len(targets)}] {name}: driver {result.serial or '?'}: {text} ({result.seconds:.2f} s)"
-                  + (f": {result.message}" if result.message else ""), flush=True)
+                  + (f": {result.message}" if result.message else ""), file=say, flush=True)
+            report.append({"name": name, "id": e["id"], "address": address if args.bus else None,
+                           "serial": result.serial, "status": result.status, "verified": result.verified,
+                           "seconds": round(result.seconds, 3), "message": result.message})
             if not result.verified:
                 failed.append(name)
             if args.bus and sys.stderr.isatty():
@@ -195,6 +217,9 @@ def main(argv: list[str] | None = None) -> int:
                       end="" if k < len(targets) else "\n", file=sys.stderr, flush=True)
     finally:
         port.close()
+    if args.json:
+        print(json.dumps({"plan": str(doc_path), "port": _shown_port(args.port), "journal": str(journal.path), "drivers": report,
+                          "verified": sum(r["verified"] for r in report), "failed": len(failed)}, indent=2))
     if failed:
         print(f"vlp-flash: {len(failed)} driver(s) failed and keep their previous configuration: "
               f"{', '.join(failed[:10])}{' ...' if len(failed) > 10 else ''}; journal {journal.path}", file=sys.stderr)

@@ -27,8 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--journal", metavar="JSON",
                    help="as-built journal written by vlp-flash (default: as-built.json beside PLAN, if present)")
     p.add_argument("-o", "--outdir", metavar="DIR", help="where to write the report (default: PLAN's directory)")
-    p.add_argument("--json", action="store_true", help="print what was written and the flashing counts as JSON")
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    cli.common_flags(p, "print what was written and the flashing counts as JSON")
     return p
 
 

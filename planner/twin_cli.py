@@ -64,8 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"a fix this close to the truth counts as located (default {TOLERANCE_M * 100:g})")
     g.add_argument("--min-success", type=float, default=0.99, metavar="SHARE",
                    help="batch: exit 3 below this success rate (default 0.99)")
-    g.add_argument("--json", action="store_true", help="print the result as JSON")
-    g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    cli.common_flags(p, "print the result as JSON")
     return p
 
 

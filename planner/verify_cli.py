@@ -35,8 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli._add_verify_flags(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the pose sample (default 0)")
     p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
-    p.add_argument("--json", action="store_true", help="print the verification summary as JSON")
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    cli.common_flags(p, "print the verification summary as JSON")
     return p
 
 

@@ -1,5 +1,6 @@
 """The nine console scripts, as installed: --help answers at once (the stages load only when a command runs)."""
 
+import json
 import shutil
 import subprocess
 import sys
@@ -37,3 +38,42 @@ def test_the_parsers_offer_exactly_what_the_stages_hold():
 
     assert set(defaults.LINE_CODE_NAMES) == set(LINE_CODES)
     assert set(defaults.LOCATE_METHODS) == set(METHODS)
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_has_json_verbose_and_version(command):
+    from planner import __version__
+
+    shown = subprocess.run([command, "--version"], capture_output=True, text=True, timeout=60)
+    assert shown.returncode == 0 and shown.stdout.strip() == f"{command} {__version__}"
+    text = subprocess.run([command, "--help"], capture_output=True, text=True, timeout=60).stdout
+    assert all(flag in text for flag in ("--json", "-v, --verbose", "--version"))
+
+
+def test_vlp_flash_json_is_the_only_thing_on_stdout(plan512_dir):
+    plan = str(plan512_dir / "plan.yaml")
+    done = subprocess.run(["vlp-flash", plan, "R01C01", "R01C02", "--bus", "--dry-run", "--json"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)  # the per-driver lines went to stderr
+    assert doc["dry_run"] is True and [d["name"] for d in doc["drivers"]] == ["R01C01", "R01C02"]
+    assert [d["address"] for d in doc["drivers"]] == [1, 2] and {d["action"] for d in doc["drivers"]} == {"flash"}
+    assert "R01C01" in done.stderr
+    refused = subprocess.run(["vlp-flash", plan, "R01C01", "--port", "sim://", "--json"], capture_output=True,
+                             text=True, timeout=60)
+    assert refused.returncode == 2 and "--json needs --bus or --dry-run" in refused.stderr
+
+
+def test_vlp_flash_json_of_a_bus_run_records_each_driver_and_hides_the_key(plan512_dir, tmp_path):
+    key = bytes(range(32)).hex()
+    (tmp_path / "key").write_text(key)
+    done = subprocess.run(["vlp-flash", str(plan512_dir / "plan.yaml"), "R01C01", "R01C02", "--bus", "--port",
+                           f"sim://?key={key}&drivers=2", "--key-file", str(tmp_path / "key"), "--journal",
+                           str(tmp_path / "as-built.json"), "--json"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert doc["verified"] == 2 and doc["failed"] == 0 and doc["port"] == "sim://?key=<hidden>&drivers=2"
+    assert [(d["name"], d["address"], d["status"]) for d in doc["drivers"]] == [("R01C01", 1, "flashed"),
+                                                                               ("R01C02", 2, "flashed")]
+    assert key not in done.stdout + done.stderr + (tmp_path / "as-built.json").read_text()
+

@@ -5,10 +5,10 @@ Packets are built by hand with planner.flash.wire; no host code is used.
 
 import hashlib
 import hmac
+import json
 import os
 import struct
 import subprocess
-import sys
 import time
 import zlib
 
@@ -309,12 +309,14 @@ def _read_frame(port: serial.Serial, timeout_s: float = 3.0) -> Packet:
 
 def test_driver_sim_process_serves_a_pty_and_exits_cleanly(tmp_path):
     (tmp_path / "key").write_text(KEY.hex() + "\n")
-    proc = subprocess.Popen([sys.executable, "-m", "planner.flash.driver_sim", "--drivers", "2", "--key-file",
-                             str(tmp_path / "key"), "--flash-dir", str(tmp_path / "flash")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(["vlp-driver-sim", "--drivers", "2", "--key-file", str(tmp_path / "key"), "--flash-dir",
+                             str(tmp_path / "flash"), "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        path = proc.stdout.readline().strip()
-        assert path.startswith("/dev/"), proc.stderr.read() if proc.poll() is not None else path
+        line = proc.stdout.readline()
+        assert line, proc.stderr.read()
+        doc = json.loads(line)  # --json: the port, addresses and flash folder on the first line
+        path = doc["port"]
+        assert path.startswith("/dev/") and doc["addresses"] == [1, 2] and doc["flash_dir"] == str(tmp_path / "flash")
         for address in (2, 1):  # close and reopen: the simulator keeps serving
             with serial.Serial(path, 115200, timeout=1) as port:
                 port.write(encode(Packet(address, 0, 5, Command.HELLO)))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy
@@ -88,8 +88,9 @@ def test_unique_ids_never_ambiguous_and_repeated_ids_are():
     assert same.count(DECODABLE) == 0 and same.count(AMBIGUOUS) == unique.count(DECODABLE)
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(rows=st.integers(3, 8), cols=st.integers(3, 10), jitter=st.floats(0, 0.12), seed=st.integers(0, 1000))
+@example(rows=3, cols=3, jitter=0.0, seed=1)  # no triple shares a window's IDs: the empty case
 def test_window_scheme_plans_never_share_a_key(rows, cols, jitter, seed):
     xy = grid_xy(rows, cols, 0.5, 0.5, jitter_m=jitter, seed=seed)
     xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
@@ -111,7 +112,8 @@ def test_window_scheme_plans_never_share_a_key(rows, cols, jitter, seed):
     sides = lambda t: np.linalg.norm(xy[np.roll(t, -1, axis=-1)] - xy[t], axis=-1)
     for w in check.windows.windows:
         v = w if ccw(w, xy) else w[[0, 2, 1]]
-        same = np.array([u for u in by_ids.get(tuple(ids[v].tolist()), []) if set(u) != set(w)]).reshape(-1, 3)
+        same = np.array([u for u in by_ids.get(tuple(ids[v].tolist()), []) if set(u) != set(w)],
+                        dtype=np.int64).reshape(-1, 3)
         alike = np.abs(sides(same) - sides(v)).max(axis=1, initial=0.0) <= tol
         assert not alike.any(), (w, same[alike][:3])
     # and on an independent pose sample too: the window set protects what no sample produced

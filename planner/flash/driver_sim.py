@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import heapq
+import json
 import os
 import select
 import shutil
@@ -21,19 +22,15 @@ import traceback
 import tty
 from pathlib import Path
 
+from .. import cli
 from ..errors import PlannerError, UsageError
 from .sim_bus import Faults, SimBus, make_bus
 
 PROG = "vlp-driver-sim"
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # type: ignore[override]
-        raise UsageError(f"{message} (see {self.prog} --help)")
-
-
 def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description="Simulated luminaire drivers (docs/protocol.md) on a pseudo-terminal.")
+    p = cli._Parser(prog=PROG, description="Simulated luminaire drivers (docs/protocol.md) on a pseudo-terminal.")
     p.add_argument("--drivers", type=int, default=1, help="drivers sharing the line (default 1)")
     p.add_argument("--first-address", type=int, default=1, help="bus address of the first driver (default 1)")
     p.add_argument("--key-file", type=Path, required=True, help="site key: a file holding it in hex or raw (16-64 bytes)")
@@ -43,7 +40,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--slot-size", type=int, default=4096, help="bytes per slot (default 4096)")
     p.add_argument("--max-block", type=int, default=256, help="most data bytes per WRITE (default 256)")
     p.add_argument("--block-write-us", type=int, default=2000, help="reported block programming time [us]")
-    p.add_argument("-v", "--verbose", action="store_true", help="tracebacks on errors")
+    cli.common_flags(p, "print the port, the drivers' addresses and the flash folder as one JSON line on stdout, "
+                        "instead of the port alone")
     return p
 
 
@@ -113,8 +111,12 @@ def main(argv: list[str] | None = None) -> int:
         signal.set_wakeup_fd(wake_w)
         for signum in (signal.SIGTERM, signal.SIGINT):
             signal.signal(signum, lambda *_: None)
-        print(os.ttyname(slave), flush=True)
         last = args.first_address + args.drivers - 1
+        if args.json:
+            print(json.dumps({"port": os.ttyname(slave), "drivers": args.drivers,
+                              "addresses": [args.first_address, last], "flash_dir": str(flash_dir)}), flush=True)
+        else:
+            print(os.ttyname(slave), flush=True)
         print(f"{PROG}: {args.drivers} driver(s) at addresses {args.first_address}..{last}, flash in {flash_dir}"
               f"{' (temporary)' if made_dir else ''}", file=sys.stderr, flush=True)
         serve(master, bus, wake_r)  # slave stays open here, so the host may close and reopen it
