@@ -133,7 +133,6 @@ def plot_cdf(results: list[Trials], path) -> None:
     save_png(fig, path)
 
 
-
 ERROR_MAX_POSES = 1000
 """Most poses an error map simulates (about 6 s); larger sites get a sparser sample and larger squares."""
 

@@ -15,7 +15,6 @@ import sys
 import time
 import traceback
 from pathlib import Path
-
 from typing import TYPE_CHECKING
 
 from . import __version__
@@ -184,7 +183,8 @@ def _progress(message: str) -> None:
 def main(argv: list[str] | None = None) -> dict:
     """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
     args = build_parser().parse_args(argv)
-    from .pipeline import FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout, write_outputs
+    from .pipeline import (FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
+                           write_outputs)
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"

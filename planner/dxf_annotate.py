@@ -21,7 +21,7 @@ from ezdxf.document import Drawing
 from ezdxf.enums import TextEntityAlignment
 
 from .dxf_layout import load_drawing
-from .layout import UNIT_TO_M
+from .defaults import UNIT_TO_M
 from .errors import InputError
 from .layout import DEFAULT_RADIUS_M, Layout
 

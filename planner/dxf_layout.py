@@ -27,7 +27,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .dxf_units import UNIT_TO_M, Figures, choose_unit
+from .defaults import UNIT_TO_M
+from .dxf_units import Figures, choose_unit
 from .errors import InputError, UsageError
 from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 

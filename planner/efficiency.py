@@ -20,7 +20,7 @@ from .errors import InputError
 from .graph import build_graph
 from .layout import Layout, Luminaire
 from .pipeline import PlanOptions, make_plan
-from .defaults import CURVE_SIZES, PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO  # noqa: F401 (re-exported)
+from .defaults import PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 
 PAPER_PRINTED = {32: (5, 4), 256: (8, 6), 512: (9, 6)}
 """The paper's printed figures per luminaire count: (naive bits, the scheme's bits) (section 2.2)."""

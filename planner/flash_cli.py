@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.bus and not sys.stdin.isatty():
         raise UsageError("interactive mode asks the installer to plug each driver and needs a terminal; "
                          "use --bus for a batch without prompts")
-    port = open_port(args.port, args.baud)
+    port, shown = open_port(args.port, args.baud), _shown_port(args.port)
     link, failed = Link(port, args.baud), []
     try:
         for k, e in enumerate(targets, 1):
@@ -201,8 +201,7 @@ def main(argv: list[str] | None = None) -> int:
                     continue
             address = where.get(name, ANY_ADDRESS)
             result = flash_driver(link, address, image, verify_only=args.verify_only)
-            journal.record(name, e["id"], f"{_shown_port(args.port)}@{address}" if args.bus else _shown_port(args.port),
-                           result)
+            journal.record(name, e["id"], f"{shown}@{address}" if args.bus else shown, result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
             print(f"[{k}/{len(targets)}] {name}: driver {result.serial or '?'}: {text} ({result.seconds:.2f} s)"
                   + (f": {result.message}" if result.message else ""), file=say, flush=True)
@@ -218,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         port.close()
     if args.json:
-        print(json.dumps({"plan": str(doc_path), "port": _shown_port(args.port), "journal": str(journal.path), "drivers": report,
+        print(json.dumps({"plan": str(doc_path), "port": shown, "journal": str(journal.path), "drivers": report,
                           "verified": sum(r["verified"] for r in report), "failed": len(failed)}, indent=2))
     if failed:
         print(f"vlp-flash: {len(failed)} driver(s) failed and keep their previous configuration: "

@@ -15,15 +15,12 @@ from matplotlib.path import Path as _PolygonPath
 from scipy.spatial import cKDTree
 
 from .errors import InputError
-from .defaults import UNIT_TO_M  # noqa: F401 (its importers read it here)
 
 DEFAULT_RADIUS_M = 0.1
 """LED radius when the drawing or layout does not give one [m] (PRODUCT.md)."""
 
 DEFAULT_MOUNT_HEIGHT_M = 2.5
 """Ceiling height when neither drawing nor flags give one [m] (the paper's rig)."""
-
-
 
 
 @dataclass(frozen=True)

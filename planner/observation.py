@@ -18,7 +18,6 @@ from .ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ell
 from .defaults import NOISE_PX
 
 
-
 @dataclass(frozen=True)
 class Sighting:
     """The LEDs one camera pose sees and the ellipses the receiver fits to them.

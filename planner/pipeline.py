@@ -27,7 +27,7 @@ from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layo
 from .plan import Plan, dump_plan, plan_document, plan_hash
 from .verify import check_window_set, classify, observe, side_bound
 from .window_proof import prove_window_set
-from .window_set import INSTALL_TOLERANCE_M
+from .defaults import INSTALL_TOLERANCE_M
 from .window_scheme import assign_unique, assign_window
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 from .defaults import SCHEMES
@@ -45,8 +45,6 @@ class ReadOptions:
     blocks: tuple[str, ...] = ()
     mount_height_m: float | None = None
     radius_m: float | None = None
-
-
 
 
 @dataclass(frozen=True)

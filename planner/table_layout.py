@@ -12,7 +12,8 @@ from pathlib import Path
 
 from .errors import InputError
 from .yaml_io import load_yaml
-from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, UNIT_TO_M, Layout, Luminaire
+from .defaults import UNIT_TO_M
+from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
 _FIELDS = {"name", "x", "y", "z", "radius"}
 

@@ -19,7 +19,8 @@ import numpy as np
 from .camera import Camera, Poses
 from .rivals import find_rivals, longest_side, site_triples
 from .window_proof import Proof
-from .window_set import INSTALL_TOLERANCE_M, window_superset
+from .defaults import INSTALL_TOLERANCE_M
+from .window_set import window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
     find_windows, sample_poses, working_area
 

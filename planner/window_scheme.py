@@ -24,7 +24,8 @@ from .graph import NeighbourGraph
 from .rivals import counter_clockwise, find_rivals, longest_side, site_triples
 from .verify import Verification, classify, design_windows, observe
 from .window_proof import Proof
-from .window_set import INSTALL_TOLERANCE_M, window_superset
+from .defaults import INSTALL_TOLERANCE_M
+from .window_set import window_superset
 from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
 
 

@@ -26,7 +26,6 @@ from scipy.spatial import cKDTree
 
 from .rivals import site_triples
 from .windows import MIN_FLATNESS, twice_signed_area
-from .defaults import INSTALL_TOLERANCE_M  # noqa: F401 (its importers read it here)
 
 NEIGHBOURS = 32
 """LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""

@@ -28,7 +28,6 @@ MIN_FLATNESS = 0.1
 """A triangle whose height is under this share of its longest side counts as collinear."""
 
 
-
 _BATCH = 20000
 _SOBOL_CHUNK_LOG2 = 16
 

@@ -14,7 +14,8 @@ from numpy.testing import assert_allclose
 
 import dxf_factory as factory
 from planner.dxf_layout import read_dxf
-from planner.dxf_units import PREFERENCE, SPACING_RANGE_M, UNIT_TO_M
+from planner.defaults import UNIT_TO_M
+from planner.dxf_units import PREFERENCE, SPACING_RANGE_M
 from planner.errors import InputError, UsageError
 from planner.layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M
 

@@ -6,7 +6,8 @@ from pathlib import Path
 import pytest
 
 from planner.cli import main as plan_main
-from planner.efficiency import PAPER_LAYOUTS, curve, efficiency, lattice_layout, table_row
+from planner.defaults import PAPER_LAYOUTS
+from planner.efficiency import curve, efficiency, lattice_layout, table_row
 from planner.efficiency_cli import console_main
 from planner.pipeline import read_layout
 
