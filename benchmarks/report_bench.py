@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from planner.pipeline import PlanOptions, make_plan, read_layout, write_outputs  # noqa: E402
 from planner.plan import load_plan  # noqa: E402
-from planner.report_files import write_report  # noqa: E402
+from planner.report.files import write_report  # noqa: E402
 
 
 def _pages(pdf: Path) -> int:

@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from planner.camera import Camera  # noqa: E402
-from planner.layout import Layout, Luminaire, check_layout  # noqa: E402
+from planner.layout.model import Layout, Luminaire, check_layout  # noqa: E402
 from planner.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
 
 
@@ -50,7 +50,7 @@ def peak_mib() -> float:
 
 
 def bench(layout: Layout, label: str, with_outputs: bool, args) -> None:
-    from planner.verify import verify_plan
+    from planner.verify.verify import verify_plan
 
     t0 = time.perf_counter()
     check_layout(layout)

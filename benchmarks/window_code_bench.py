@@ -5,7 +5,7 @@ Run from the repository root:  python benchmarks/window_code_bench.py [--grids 1
 For each grid: every unit cell gives four L windows (right-angle corner, arm, arm +90
 degrees, counter-clockwise from the corner), all of one non-symmetric shape. Prints
 one line per grid: windows, labels K, bits, counting lower bound (labels and bits), the
-method and the wall time [s] of :func:`planner.window_code.assign_window_code`.
+method and the wall time [s] of :func:`planner.codes.window.assign_window_code`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planner.window_code import assign_window_code, count_conflicts  # noqa: E402
+from planner.codes.window import assign_window_code, count_conflicts  # noqa: E402
 
 
 def l_windows(rows: int, cols: int) -> np.ndarray:

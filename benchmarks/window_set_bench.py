@@ -25,11 +25,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from planner.camera import Camera  # noqa: E402
-from planner.layout import Layout, Luminaire  # noqa: E402
+from planner.layout.model import Layout, Luminaire  # noqa: E402
 from planner.pipeline import PlanOptions, ReadOptions, make_plan, read_layout  # noqa: E402
-from planner.verify import classify, observe  # noqa: E402
-from planner.window_proof import prove_window_set  # noqa: E402
-from planner.window_set import window_superset  # noqa: E402
+from planner.verify.verify import classify, observe  # noqa: E402
+from planner.verify.proof import prove_window_set  # noqa: E402
+from planner.verify.window_set import window_superset  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 

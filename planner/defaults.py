@@ -14,7 +14,7 @@ LINE_CODE_NAMES = ("4b6b", "manchester")
 """Line codes of the frames (:data:`planner.frame.LINE_CODES` holds them)."""
 
 LOCATE_METHODS = ("paper", "perspective")
-"""Positioning methods (:data:`planner.locate.METHODS` holds them)."""
+"""Positioning methods (:data:`planner.positioning.locate.METHODS` holds them)."""
 
 DRIVER_MAX_HZ = 20_000.0
 """Default fastest chip rate a luminaire driver switches cleanly [Hz] (``--driver-max-hz``)."""

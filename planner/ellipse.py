@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .errors import PositioningError
+from planner.errors import PositioningError
 
 
 @dataclass(frozen=True)

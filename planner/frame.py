@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .errors import InputError
+from planner.errors import InputError
 
 # IEEE 802.15.7-2011 Table 118 (4B6B): nibble (MSB first) -> six chips, three of them ones.
 FOUR_B_SIX_B = ("001110", "001101", "010011", "010110", "010101", "100011", "100110", "100101",

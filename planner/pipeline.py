@@ -15,22 +15,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .accuracy import ERROR_POSES_PER_M2, site_accuracy
-from .assignment import assign_paper
-from .frame import line_code
-from .modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
-from .check_bits import check_code
-from .camera import Camera
-from .errors import InputError, UsageError
-from .graph import build_graph
-from .layout import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
-from .plan import Plan, dump_plan, plan_document, plan_hash
-from .verify import check_window_set, classify, observe, side_bound
-from .window_proof import prove_window_set
-from .defaults import INSTALL_TOLERANCE_M
-from .window_scheme import assign_unique, assign_window
-from .windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
-from .defaults import SCHEMES
+from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
+from planner.codes.assignment import assign_paper
+from planner.frame import line_code
+from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
+from planner.codes.check_bits import check_code
+from planner.camera import Camera
+from planner.errors import InputError, UsageError
+from planner.graph import build_graph
+from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
+from planner.plan import Plan, dump_plan, plan_document, plan_hash
+from planner.verify.verify import check_window_set, classify, observe, side_bound
+from planner.verify.proof import prove_window_set
+from planner.defaults import INSTALL_TOLERANCE_M
+from planner.codes.schemes import assign_unique, assign_window
+from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
+from planner.defaults import SCHEMES
 
 LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
 
@@ -75,7 +75,7 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
         raise UsageError(f"{path}: no such file")
     suffix = path.suffix.lower()
     if suffix == ".dxf":
-        from .dxf_layout import read_dxf
+        from planner.layout.dxf import read_dxf
 
         layout = read_dxf(
             path, units=options.units, preset=options.preset, layers=list(options.layers) or None,
@@ -83,7 +83,7 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
             radius_m=options.radius_m, allow_outline_only=leds is not None,
         )
     else:
-        from .table_layout import read_csv, read_yaml
+        from planner.layout.tables import read_csv, read_yaml
 
         reader = read_csv if suffix == ".csv" else read_yaml
         layout = reader(path, units=options.units, mount_height_m=options.mount_height_m, radius_m=options.radius_m)
@@ -224,19 +224,19 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         text = dump_plan(document)
         (stage / "plan.yaml").write_text(text, encoding="utf-8")
         if firmware is not None and plan.modulation is not None:
-            from .firmware import write_firmware
+            from planner.firmware.render import write_firmware
 
             write_firmware(document, plan_hash(text), stage, template_dir=firmware.template_dir,
                            mcu_clock_hz=firmware.mcu_clock_hz, image_version=firmware.image_version)
-        from .dxf_annotate import write_annotated_dxf
+        from planner.layout.dxf_annotate import write_annotated_dxf
 
-        from . import __version__
+        from planner import __version__
 
         is_dxf = source.suffix.lower() == ".dxf"
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),
                             source_path=source if is_dxf else None, tool_version=__version__)
         if with_map:
-            from .plan_map import render_coverage, render_error, render_map
+            from planner.report.maps import render_coverage, render_error, render_map
 
             render_map(plan, stage / "map.png")
             if plan.verification is not None:
@@ -244,7 +244,7 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
             if plan.accuracy is not None:
                 render_error(plan, stage / "error.png")
         if with_report:
-            from .report_files import write_report
+            from planner.report.files import write_report
 
             write_report(document, plan_hash(text), stage, stage)
         names = sorted(p.name for p in stage.iterdir())

@@ -14,19 +14,19 @@ from typing import TYPE_CHECKING
 
 import yaml
 
-from . import __version__
-from .errors import InputError
-from .yaml_io import load_yaml
+from planner import __version__
+from planner.errors import InputError
+from planner.yaml_io import load_yaml
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
-    from .assignment import Assignment
-    from .camera import Camera
-    from .graph import NeighbourGraph
-    from .layout import Layout
-    from .accuracy import SiteAccuracy
-    from .modulation import Modulation
-    from .check_bits import CheckCode
-    from .verify import Verification
+    from planner.codes.assignment import Assignment
+    from planner.camera import Camera
+    from planner.graph import NeighbourGraph
+    from planner.layout.model import Layout
+    from planner.positioning.accuracy import SiteAccuracy
+    from planner.modulation import Modulation
+    from planner.codes.check_bits import CheckCode
+    from planner.verify.verify import Verification
 
 FORMAT = "vlp-plan/1"
 _DECIMALS_M = 6

@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="session")
 def plan512_dir(tmp_path_factory) -> Path:
     """``grid-512.yaml`` planned once for the whole run (firmware and report, no map); read it, never write into it."""
-    from planner.cli import main as plan_main
+    from planner.cli.plan import main as plan_main
 
     out = tmp_path_factory.mktemp("shared") / "p512"
     plan_main([str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "-o", str(out), "--no-map", "--json",

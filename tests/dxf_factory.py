@@ -17,7 +17,7 @@ from ezdxf.document import Drawing
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.dxf_annotate import dxf_bytes, fixed_metadata  # noqa: E402
+from planner.layout.dxf_annotate import dxf_bytes, fixed_metadata  # noqa: E402
 
 INSUNITS = {"in": 1, "ft": 2, "mm": 4, "cm": 5, "m": 6}
 DLX_LAYER = "DLX_BLD1_FL0_LUM 1"

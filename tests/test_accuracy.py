@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
-from planner.accuracy_cli import console_main
-from planner.cli import main as plan_main
+from planner.positioning.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
+from planner.cli.accuracy import console_main
+from planner.cli.plan import main as plan_main
 from planner.plan import load_plan
 
 ROOT = Path(__file__).resolve().parents[1]

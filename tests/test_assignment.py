@@ -6,7 +6,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy, hex_xy
-from planner.assignment import assign_paper, pair_conflicts, pair_lower_bound
+from planner.codes.assignment import assign_paper, pair_conflicts, pair_lower_bound
 from planner.graph import build_graph
 
 

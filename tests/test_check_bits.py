@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.check_bits import check_code
+from planner.codes.check_bits import check_code
 from planner.errors import UsageError
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from planner.cli import console_main, main
+from planner.cli.plan import console_main, main
 
 ROOT = Path(__file__).resolve().parent.parent
 LAYOUTS = ROOT / "layouts"
@@ -68,7 +68,7 @@ def test_default_outdir_is_next_to_the_layout(tmp_path):
 
 
 def run(args, cwd):
-    return subprocess.run([sys.executable, "-m", "planner.cli", *args], cwd=cwd, capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "planner.cli.plan", *args], cwd=cwd, capture_output=True, text=True)
 
 
 def write(tmp_path, name, text):
@@ -158,7 +158,7 @@ def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
     for seed in ("1", "4", "11"):
         out = tmp_path / f"s{seed}"
         env = dict(os.environ, PYTHONHASHSEED=seed)
-        result = subprocess.run([sys.executable, "-m", "planner.cli", str(LAYOUTS / "grid-32.yaml"), "-o", str(out)],
+        result = subprocess.run([sys.executable, "-m", "planner.cli.plan", str(LAYOUTS / "grid-32.yaml"), "-o", str(out)],
                                 cwd=ROOT, env=env, capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         digests.append({p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()})
@@ -187,6 +187,6 @@ def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_
 
 def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path):
     main([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json", "--scheme", "paper"])
-    result = subprocess.run([sys.executable, "-m", "planner.verify_cli", str(tmp_path / "o" / "plan.yaml"),
+    result = subprocess.run([sys.executable, "-m", "planner.cli.verify", str(tmp_path / "o" / "plan.yaml"),
                              "--map", str(tmp_path / "no" / "such" / "map.png")], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 2 and "does not exist" in result.stderr and "Traceback" not in result.stderr

@@ -8,10 +8,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 import dxf_factory as factory
-from planner.dxf_annotate import APPID, ID_LAYER, LUM_LAYER, label, write_annotated_dxf
-from planner.dxf_layout import read_dxf
+from planner.layout.dxf_annotate import APPID, ID_LAYER, LUM_LAYER, label, write_annotated_dxf
+from planner.layout.dxf import read_dxf
 from planner.errors import InputError
-from planner.layout import Layout, Luminaire
+from planner.layout.model import Layout, Luminaire
 
 
 def _entries(layout: Layout) -> list[dict]:

@@ -5,10 +5,10 @@ from pathlib import Path
 
 import pytest
 
-from planner.cli import main as plan_main
+from planner.cli.plan import main as plan_main
 from planner.defaults import PAPER_LAYOUTS
-from planner.efficiency import curve, efficiency, lattice_layout, table_row
-from planner.efficiency_cli import console_main
+from planner.studies.efficiency import curve, efficiency, lattice_layout, table_row
+from planner.cli.efficiency import console_main
 from planner.pipeline import read_layout
 
 ROOT = Path(__file__).resolve().parents[1]

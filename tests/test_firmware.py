@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from planner.errors import InputError, UsageError
-from planner.firmware import (CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, chip_timer, config_image,
+from planner.firmware.render import (CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, chip_timer, config_image,
                               default_template_dir, file_name, pack_chips, parse_config_image,
                               render_firmware, write_firmware)
 
@@ -300,7 +300,7 @@ def test_packaging_lists_every_subpackage():
 
 def test_vlp_plan_writes_headers_that_play_the_plans_frames(tmp_path):
     """End to end: the real planner's frames, through the bundled templates, compiled and played."""
-    from planner.cli import main as plan_main
+    from planner.cli.plan import main as plan_main
     from planner.plan import load_plan, plan_hash
 
     out = tmp_path / "g32"

@@ -14,12 +14,12 @@ from pathlib import Path
 import pytest
 import serial
 
-from planner.firmware import SIGNATURE_OFFSET, config_image, parse_config_image
-from planner.flash import protocol_sim
-from planner.flash.driver import Flash, SimulatedDriver
+from planner.firmware.render import SIGNATURE_OFFSET, config_image, parse_config_image
+from planner.flash.sim import protocol_sim
+from planner.flash.sim.driver import Flash, SimulatedDriver
 from planner.flash.flasher import flash_driver, sign_image
 from planner.flash.link import Link
-from planner.flash_cli import console_main
+from planner.cli.flash import console_main
 
 ROOT = Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))
@@ -40,7 +40,7 @@ def _booted(path: Path) -> SimulatedDriver:
 
 def test_every_512_driver_ends_verified_or_failed_and_never_corrupt(site, tmp_path, capsys):
     flash_dir = tmp_path / "flash"
-    sim = subprocess.Popen([sys.executable, "-m", "planner.flash.driver_sim", "--drivers", "512", "--key-file",
+    sim = subprocess.Popen([sys.executable, "-m", "planner.cli.driver_sim", "--drivers", "512", "--key-file",
                             str(site / "key"), "--flash-dir", str(flash_dir), "--faults",
                             "corrupt=0.001,reset=0.01,power=0.01,seed=3"],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
@@ -152,7 +152,7 @@ def test_interactive_mode_asks_for_each_driver_on_a_terminal(site, tmp_path):
     """The installer's session, with a real pseudo-terminal as stdin: Enter flashes, s skips."""
     master, slave = os.openpty()
     os.write(master, b"\ns\n")  # plug the first driver and press Enter; skip the second
-    proc = subprocess.run([sys.executable, "-m", "planner.flash_cli", str(site / "p512" / "plan.yaml"), "R01C01",
+    proc = subprocess.run([sys.executable, "-m", "planner.cli.flash", str(site / "p512" / "plan.yaml"), "R01C01",
                            "R01C02", "--port", f"sim://?key={KEY.hex()}", "--key-file", str(site / "key"),
                            "--journal", str(tmp_path / "j.json")], stdin=slave, capture_output=True, text=True,
                           cwd=ROOT, timeout=60)

@@ -93,7 +93,7 @@ def test_one_frame_is_accepted_when_two_do_not_fit():
 
 
 def test_vlp_plan_refuses_a_driver_too_slow(tmp_path, capsys):
-    from planner.cli import console_main
+    from planner.cli.plan import console_main
 
     code = console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--driver-max-hz", "900"])
     err = capsys.readouterr().err

@@ -4,7 +4,7 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 
 from planner.errors import InputError
-from planner.layout import Layout, Luminaire, check_layout, fill_outline
+from planner.layout.model import Layout, Luminaire, check_layout, fill_outline
 
 
 def lums(points, radius=0.1):

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from planner.camera import Camera, rotation_from_angles
-from planner.cli import main as plan_main
+from planner.cli.plan import main as plan_main
 from planner.ellipse import Ellipse
 from planner.errors import PositioningError
-from planner.locate import Site, Snapshot, identify, locate
-from planner.locate_cli import console_main
-from planner.observation import observe
+from planner.positioning.locate import Site, Snapshot, identify, locate
+from planner.cli.locate import console_main
+from planner.positioning.observation import observe
 from planner.plan import load_plan
-from planner.windows import sample_poses, working_area
+from planner.verify.windows import sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -143,7 +143,7 @@ def test_locate_needs_an_observation_or_a_pose(plan_path, capsys):
 def test_anchor_triple_looks_past_a_row_of_leds_listed_first():
     """Regression (found by the receiver twin): the anchor triple was sought among the first six
     LEDs only, so a snapshot in scan order, one collinear row first, was refused as "one line"."""
-    from planner.fix import anchor_triple
+    from planner.positioning.fix import anchor_triple
 
     row = [(100.0 + 300 * k, 200.0) for k in range(6)]
     centres = np.array(row + [(400.0, 900.0), (1300.0, 950.0)])

@@ -6,10 +6,10 @@ import pytest
 from planner.camera import Camera, disc_dual_conic, project_discs_at, rotation_from_angles
 from planner.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
 from planner.errors import PositioningError
-from planner.fix import angles_of
-from planner.observation import observe, rim_points
-from planner.pose_fit import locate_perspective
-from planner.positioning import locate_paper
+from planner.positioning.fix import angles_of
+from planner.positioning.observation import observe, rim_points
+from planner.positioning.perspective import locate_perspective
+from planner.positioning.paper import locate_paper
 
 CAM = Camera()
 

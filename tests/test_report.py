@@ -16,11 +16,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.cli import main as plan_main
-from planner.flash_cli import console_main as flash_main
-from planner.report import checklist, id_bill, walking_order
-from planner.report_cli import console_main as report_main
-from planner.report_cli import main as report_cli
+from planner.cli.plan import main as plan_main
+from planner.cli.flash import console_main as flash_main
+from planner.report.content import checklist, id_bill, walking_order
+from planner.cli.report import console_main as report_main
+from planner.cli.report import main as report_cli
 
 from conftest import grid_xy, hex_xy
 
@@ -219,14 +219,14 @@ def test_replanning_refuses_to_delete_an_as_built_journal(site, tmp_path, capsys
     plan = tmp_path / "plan"
     shutil.copytree(site / "plan", plan)
     (plan / "as-built.json").write_text("{}")
-    from planner.cli import console_main
+    from planner.cli.plan import console_main
 
     assert console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(plan)]) == 2
     assert "as-built.json" in capsys.readouterr().err and (plan / "as-built.json").read_text() == "{}"
 
 
 def test_pdf_names_outside_the_builtin_font_fall_back_to_an_embedded_one(tmp_path):
-    from planner.report_files import write_report
+    from planner.report.files import write_report
 
     doc = {"source": {"file": "büro.yaml", "unit": "m"}, "scheme": "unique",
            "code": {"bits": 2, "naive_bits": 2, "lower_bound_bits": 2, "max_id": 3},

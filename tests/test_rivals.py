@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy
-from planner.rivals import find_rivals, site_triples
+from planner.codes.rivals import find_rivals, site_triples
 
 
 def ccw(t, xy):

@@ -1,7 +1,7 @@
 import pytest
 
 from planner.errors import InputError
-from planner.table_layout import read_csv, read_yaml
+from planner.layout.tables import read_csv, read_yaml
 
 
 def test_yaml_in_centimetres_is_converted_to_metres(tmp_path):

@@ -15,12 +15,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner.camera import rotation_from_angles
-from planner.camera_frame import Sensor, exposure_means, render_frame
+from planner.twin.render import Sensor, exposure_means, render_frame
 from planner.frame import frame_chips, line_code
 from planner.plan import load_plan
-from planner.receiver import Modulation, chips_from_levels, decode_frame
-from planner.twin import Twin, covered_poses, run_pose, summary
-from planner.twin_cli import console_main
+from planner.twin.receiver import Modulation, chips_from_levels, decode_frame
+from planner.twin.twin import Twin, covered_poses, summary
+from planner.cli.twin import console_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -123,7 +123,7 @@ def test_300_covered_poses_decode_and_locate(plan512):
     twin = Twin.from_plan(doc)
     poses = covered_poses(twin, 300, seed=0)
     assert np.degrees(poses.tilt_rad).max() > 35 and np.degrees(poses.tilt_rad).max() <= 40
-    from planner.twin_cli import run_batch
+    from planner.cli.twin import run_batch
 
     class Args:
         poses, seed, jobs, tolerance_cm, save_failures = 300, 0, 2, 10.0, None

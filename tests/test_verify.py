@@ -14,12 +14,12 @@ from hypothesis import strategies as st
 from conftest import grid_xy
 from planner.camera import Camera, Poses, project_discs, rotation_from_angles
 from planner.graph import build_graph
-from planner.verify import AMBIGUOUS, DECODABLE, verify_plan
-from planner.window_code import window_keys
-from planner.rivals import find_rivals
-from planner.window_scheme import assign_window
-from planner.window_proof import prove_window_set
-from planner.windows import canonical_windows, find_windows, sample_poses, working_area
+from planner.verify.verify import AMBIGUOUS, DECODABLE, verify_plan
+from planner.codes.window import window_keys
+from planner.codes.rivals import find_rivals
+from planner.codes.schemes import assign_window
+from planner.verify.proof import prove_window_set
+from planner.verify.windows import canonical_windows, find_windows, sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -132,9 +132,9 @@ def plan_cli(args, cwd=ROOT):
 
 def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path):
     out = tmp_path / "out"
-    made = plan_cli(["planner.cli", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheme", "window"])
+    made = plan_cli(["planner.cli.plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheme", "window"])
     assert made.returncode == 0, made.stderr
-    ok = plan_cli(["planner.verify_cli", str(out / "plan.yaml")])
+    ok = plan_cli(["planner.cli.verify", str(out / "plan.yaml")])
     assert ok.returncode == 0 and "0 ambiguous" in ok.stdout
     doc = yaml.safe_load((out / "plan.yaml").read_text())
     lums = doc["luminaires"]
@@ -158,7 +158,7 @@ def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path):
     lums[i]["id"], lums[j]["id"] = lums[j]["id"], lums[i]["id"]
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(doc, sort_keys=False))
-    result = plan_cli(["planner.verify_cli", str(bad), "--map", str(tmp_path / "cov.png")])
+    result = plan_cli(["planner.cli.verify", str(bad), "--map", str(tmp_path / "cov.png")])
     assert result.returncode == 3, result.stdout + result.stderr
     named = [line for line in result.stdout.splitlines() if "same key:" in line]
     assert named and any(lums[i]["name"] in line or lums[j]["name"] in line for line in named)
@@ -168,7 +168,7 @@ def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path):
 def test_vlp_verify_bad_plan_file(tmp_path):
     bad = tmp_path / "plan.yaml"
     bad.write_text("format: something-else\n")
-    result = plan_cli(["planner.verify_cli", str(bad)])
+    result = plan_cli(["planner.cli.verify", str(bad)])
     assert result.returncode == 1 and "not a vlp-plan/1 plan" in result.stderr
 
 
@@ -185,7 +185,7 @@ def test_working_area_is_the_hull_without_an_outline():
 
 def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
     out = tmp_path / "out"
-    made = plan_cli(["planner.cli", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-report",
+    made = plan_cli(["planner.cli.plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-report",
                      "--no-firmware", "--no-map"])
     assert made.returncode == 0, made.stderr
     doc = yaml.safe_load((out / "plan.yaml").read_text())

@@ -6,8 +6,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from planner import window_code as wc
-from planner.window_code import (assign_window_code, conflicting_windows, count_conflicts, cpsat_labels,
+from planner.codes import window as wc
+from planner.codes.window import (assign_window_code, conflicting_windows, count_conflicts, cpsat_labels,
                                  lower_bound_labels, repair_labels, search_labels, window_keys)
 
 

@@ -8,12 +8,12 @@ from hypothesis import strategies as st
 
 from conftest import grid_xy, hex_xy
 from planner.camera import Camera
-from planner.layout import Layout, Luminaire
+from planner.layout.model import Layout, Luminaire
 from planner.pipeline import PlanOptions, make_plan
-from planner.verify import AMBIGUOUS, classify, observe
-from planner.window_proof import envelope
-from planner.window_set import empty_triangles, window_superset
-from planner.windows import POSES_PER_M2, find_windows, sample_poses, working_area
+from planner.verify.verify import AMBIGUOUS, classify, observe
+from planner.verify.proof import envelope
+from planner.verify.window_set import empty_triangles, window_superset
+from planner.verify.windows import POSES_PER_M2, find_windows, sample_poses, working_area
 
 
 def poisson_xy(n: int, spacing: float, seed: int) -> np.ndarray:

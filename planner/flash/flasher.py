@@ -17,9 +17,9 @@ import zlib
 from dataclasses import dataclass
 from typing import Callable
 
-from ..firmware import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
-from .link import Link, LinkError
-from .wire import (BEGIN_REPLY, BEGIN_REQUEST, CAP_AB_SLOTS, CAP_HMAC, CAP_RESUME, COMMIT_REQUEST,
+from planner.firmware.render import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
+from planner.flash.link import Link, LinkError
+from planner.flash.wire import (BEGIN_REPLY, BEGIN_REQUEST, CAP_AB_SLOTS, CAP_HMAC, CAP_RESUME, COMMIT_REQUEST,
                    PROTOCOL_VERSION, VERIFY_REPLY, WRITE_HEAD, WRITE_REPLY, Command, Hello, Status)
 
 SESSIONS = 3

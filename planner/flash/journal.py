@@ -13,8 +13,8 @@ import os
 from datetime import datetime, timezone
 from pathlib import Path
 
-from ..errors import InputError
-from .flasher import FlashResult
+from planner.errors import InputError
+from planner.flash.flasher import FlashResult
 
 FORMAT = "vlp-asbuilt/1"
 

@@ -15,7 +15,7 @@ from enum import IntEnum
 
 from cobs import cobs
 
-from ..errors import PlannerError
+from planner.errors import PlannerError
 
 ANY_ADDRESS = 0xFFFF  # point to point: whichever driver is plugged in answers
 FLAG_RESPONSE = 0x01

@@ -1,0 +1,152 @@
+"""What every command shares: the parser, flag types, common flags, progress and ``console_main``.
+
+A command's ``main(argv)`` raises :class:`~planner.errors.PlannerError` so tests can
+call it in process; ``console_main`` turns errors into one line and an exit code
+(:class:`~planner.errors.ExitCode`), with the traceback only under ``--verbose``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import traceback
+from typing import TYPE_CHECKING
+
+from planner import __version__
+from planner.defaults import (CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, POSES_PER_M2)
+from planner.errors import ExitCode, PlannerError, UsageError
+
+if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
+    from planner.camera import Camera
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that raises UsageError instead of exiting, so main() stays testable."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{message} (see {self.prog} --help)")
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
+    return value
+
+
+def _number(text: str, minimum: float, strict: bool) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (value > minimum if strict else value >= minimum) or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    return _number(text, 0.0, strict=True)
+
+
+def non_negative_float(text: str) -> float:
+    return _number(text, 0.0, strict=False)
+
+
+def common_flags(p: argparse.ArgumentParser, json_help: str) -> None:
+    """The flags every command has, last in its help: ``--json``, ``-v/--verbose``, ``--version``."""
+    p.add_argument("--json", action="store_true", help=json_help)
+    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"{p.prog} {__version__}")
+
+
+def add_verify_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("verification")
+    g.add_argument("--poses-per-m2", type=positive_float, default=POSES_PER_M2, metavar="N",
+                   help=f"camera poses sampled per square metre of floor (default {POSES_PER_M2:g})")
+    g.add_argument("--tolerance", type=positive_float, default=CONGRUENCE_TOLERANCE_M, metavar="M",
+                   help=f"triangles whose sides differ by less than this look alike to the receiver [m] "
+                   f"(default {CONGRUENCE_TOLERANCE_M:g})")
+    g.add_argument("--install-tolerance", type=non_negative_float, default=None if p.prog == "vlp-verify" else
+                   INSTALL_TOLERANCE_M, metavar="M",
+                   help="installed luminaires may lie this far from the drawing; every triangle that may then be a "
+                   f"window is protected [m] (default {INSTALL_TOLERANCE_M:g}"
+                   + (", or the plan's" if p.prog == "vlp-verify" else "") + ")")
+    if p.prog == "vlp-plan":
+        g.add_argument("--camera", metavar="YAML", help="camera file (docs/camera.md); default: the paper's camera")
+        g.add_argument("--no-verify", action="store_true",
+                       help="skip verification of a paper or unique plan (needs an explicit --scheme; the window "
+                       "scheme is built from verification and always verified)")
+    else:
+        g.add_argument("--camera", metavar="YAML",
+                       help="camera file (docs/camera.md); default: the camera recorded in the plan")
+
+
+def camera_from_args(args) -> Camera:
+    from planner.camera import Camera
+    from planner.camera_file import read_camera
+
+    if not args.camera:
+        return Camera()
+
+    return read_camera(args.camera)
+
+
+def progress(message: str) -> None:
+    if sys.stderr.isatty():
+        print(f"  .. {message}", file=sys.stderr, flush=True)
+
+
+def verification_line(v: dict) -> str:
+    n = max(v["poses"], 1)
+    line = (f"{v['poses']} sampled poses: {100 * v['coverage']:.1f} % decodable, {v['ambiguous']} ambiguous, "
+            f"{100 * v['collinear'] / n:.1f} % collinear, {100 * v['too_few_leds'] / n:.1f} % see fewer than 3 LEDs")
+    if v["first_conflicts"]:
+        group = v["first_conflicts"][0]
+        line += "; first conflict: " + " vs ".join("(" + ", ".join(t) + ")" for t in group[:2])
+    w = v.get("window_set")
+    if w:
+        bound = ("every pose of the envelope" if w.get("complete") else
+                 f"empty, sides up to {w['max_side_m']:g} m from samples")
+        line += (f"\n  windows  {w['triangles']} triangles that may be windows ({bound}, installed within "
+                 f"{w['install_tolerance_m']:g} m): {w['read_alike']} read like another triple")
+        if w["first_conflicts"]:
+            line += "; first: " + " vs ".join("(" + ", ".join(t) + ")" for t in w["first_conflicts"][0][:2])
+        line += ("\n  proof    decodable at every pose of the envelope: proved" if w.get("proved") else
+                 "\n  proof    not proved: " + (w.get("not_proved_because") or "a triangle that may be a window "
+                                                 "reads like another triple"))
+    return line
+
+
+def console_main(argv: list[str] | None, command, name: str) -> int:
+    """Run ``command(argv)`` as the script ``name``: its exit code, or one line per error and the error's code."""
+    verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
+    try:
+        result = command(argv)
+        if isinstance(result, int):
+            return result
+        if isinstance(result, dict) and "exit_code" in result:
+            return int(result["exit_code"])
+    except PlannerError as exc:
+        if verbose:
+            traceback.print_exc()
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except BrokenPipeError:  # the reader went away (``| head``): stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return ExitCode.BROKEN_PIPE
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted; no output was written", file=sys.stderr)
+        return ExitCode.INTERRUPTED
+    except Exception as exc:  # a bug: still one line, unless asked for more
+        if verbose:
+            traceback.print_exc()
+        print(f"{name}: internal error: {type(exc).__name__}: {exc} (rerun with --verbose and report it)",
+              file=sys.stderr)
+        return ExitCode.INPUT
+    return ExitCode.OK
+

@@ -1,0 +1,148 @@
+"""``vlp-driver-sim``: simulated drivers behind a pseudo-terminal, for hosts that open a real port.
+
+Prints the terminal's path as the first line of stdout, then serves until SIGTERM or
+SIGINT (exit 0). Each driver's flash is the file ``<serial>.flash`` in ``--flash-dir``
+(kept; default a temporary folder, reported on stderr and removed at exit). The host
+may close and reopen the terminal at will.
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import json
+import os
+import select
+import shutil
+import signal
+import sys
+import tempfile
+import time
+import traceback
+import tty
+from pathlib import Path
+
+from planner.cli import common as cli
+from planner.errors import PlannerError, UsageError
+from planner.flash.sim.bus import Faults, SimBus, make_bus
+
+PROG = "vlp-driver-sim"
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = cli.Parser(prog=PROG, description="Simulated luminaire drivers (docs/protocol.md) on a pseudo-terminal.")
+    p.add_argument("--drivers", type=int, default=1, help="drivers sharing the line (default 1)")
+    p.add_argument("--first-address", type=int, default=1, help="bus address of the first driver (default 1)")
+    p.add_argument("--key-file", type=Path, required=True, help="site key: a file holding it in hex or raw (16-64 bytes)")
+    p.add_argument("--faults", default="", help="fault spec, e.g. corrupt=0.001,reset=0.01,power=0.01,stall=0.01,seed=3")
+    p.add_argument("--flash-dir", type=Path, help="folder of the drivers' flash files (default: a temporary folder)")
+    p.add_argument("--serial-prefix", default="SIM-", help="serial number prefix (default SIM-)")
+    p.add_argument("--slot-size", type=int, default=4096, help="bytes per slot (default 4096)")
+    p.add_argument("--max-block", type=int, default=256, help="most data bytes per WRITE (default 256)")
+    p.add_argument("--block-write-us", type=int, default=2000, help="reported block programming time [us]")
+    cli.common_flags(p, "print the port, the drivers' addresses and the flash folder as one JSON line on stdout, "
+                        "instead of the port alone")
+    return p
+
+
+def read_key(path: Path) -> bytes:
+    """A site key from a file: hex digits (whitespace ignored) or the raw bytes; 16 to 64 bytes."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read the site key ({exc.strerror or exc})") from None
+    try:
+        key = bytes.fromhex(raw.decode("ascii"))
+    except (UnicodeDecodeError, ValueError):
+        key = raw
+    if not 16 <= len(key) <= 64:
+        raise UsageError(f"{path}: site key of {len(key)} bytes; the protocol needs 16 to 64 (hex or raw)")
+    return key
+
+
+def serve(master: int, bus: SimBus, wakeup: int) -> None:
+    """Move bytes between the terminal's ``master`` side and ``bus`` until ``wakeup`` is readable."""
+    later: list[tuple[float, int, bytes]] = []  # (time due [s, monotonic], order, bytes): stalled answers
+    order = 0
+    while True:
+        timeout = max(0.0, later[0][0] - time.monotonic()) if later else None
+        readable, _, _ = select.select([master, wakeup], [], [], timeout)
+        if wakeup in readable:
+            return
+        if master in readable:
+            try:
+                data = os.read(master, 4096)
+            except OSError:  # no one has the terminal open: wait for the host to come back
+                time.sleep(0.05)
+                data = b""
+            now = time.monotonic()
+            for delay_s, answer in bus.send(data):
+                heapq.heappush(later, (now + delay_s, order, answer))
+                order += 1
+        while later and later[0][0] <= time.monotonic():
+            _send(master, heapq.heappop(later)[2])
+
+
+def _send(master: int, data: bytes) -> None:
+    try:
+        os.write(master, data)
+    except OSError:  # the terminal's buffer is full or closed: the bytes are lost, as on an unread line
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the simulator; raises :class:`PlannerError` on bad arguments."""
+    args = _parser().parse_args(argv)
+    key = read_key(args.key_file)
+    faults = Faults.parse(args.faults)
+    made_dir = args.flash_dir is None
+    flash_dir = Path(tempfile.mkdtemp(prefix="vlp-driver-sim-")) if made_dir else args.flash_dir
+    bus = None
+    master = slave = wake_r = wake_w = -1
+    try:
+        bus = make_bus(args.drivers, key, first_address=args.first_address, serial_prefix=args.serial_prefix,
+                       flash_dir=flash_dir, slot_size=args.slot_size, max_block=args.max_block,
+                       block_write_us=args.block_write_us, faults=faults)
+        master, slave = os.openpty()
+        tty.setraw(slave)  # no echo, no line editing: bytes pass unchanged
+        os.set_blocking(master, False)
+        wake_r, wake_w = os.pipe()
+        os.set_blocking(wake_w, False)
+        signal.set_wakeup_fd(wake_w)
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(signum, lambda *_: None)
+        last = args.first_address + args.drivers - 1
+        if args.json:
+            print(json.dumps({"port": os.ttyname(slave), "drivers": args.drivers,
+                              "addresses": [args.first_address, last], "flash_dir": str(flash_dir)}), flush=True)
+        else:
+            print(os.ttyname(slave), flush=True)
+        print(f"{PROG}: {args.drivers} driver(s) at addresses {args.first_address}..{last}, flash in {flash_dir}"
+              f"{' (temporary)' if made_dir else ''}", file=sys.stderr, flush=True)
+        serve(master, bus, wake_r)  # slave stays open here, so the host may close and reopen it
+    finally:
+        signal.set_wakeup_fd(-1)
+        for fd in (master, slave, wake_r, wake_w):
+            if fd >= 0:
+                os.close(fd)
+        if bus is not None:
+            bus.close()
+        if made_dir:
+            shutil.rmtree(flash_dir, ignore_errors=True)
+    return 0
+
+
+def console_main(argv: list[str] | None = None) -> int:
+    """The ``vlp-driver-sim`` script: one line per error and a non-zero exit code."""
+    args = sys.argv[1:] if argv is None else argv
+    try:
+        return main(argv)
+    except PlannerError as exc:
+        if "-v" in args or "--verbose" in args:
+            traceback.print_exc()
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+
+
+if __name__ == "__main__":
+    sys.exit(console_main())

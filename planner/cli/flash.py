@@ -1,0 +1,233 @@
+"""``vlp-flash PLAN --port PORT``: flash the luminaires' drivers with their configuration images.
+
+Interactive (default): one driver at a time on a point-to-point cable, the installer
+is told which luminaire to plug. ``--bus``: every driver on one multi-drop bus,
+addressed from ``--bus-map`` (else plan order from 1). Every result goes to the
+as-built journal at once; ``--resume`` skips drivers it records as verified.
+Exit codes: 0 every driver verified, 3 some failed (named; they keep their previous
+configuration), 1 bad input, 2 usage (missing, busy or unknown port).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import json
+import os
+import re
+import sys
+from pathlib import Path
+
+from planner.cli import common as cli
+from planner.errors import ExitCode, InputError, UsageError
+
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = cli.Parser(prog="vlp-flash", description="Flash luminaire drivers over a serial link with the configuration "
+                    "images vlp-plan wrote (OUTDIR/firmware/), signed with the site key; verify and journal each.",
+                    epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input, 2 usage. Docs: "
+                    "docs/flashing.md, docs/protocol.md.")
+    p.add_argument("plan", metavar="PLAN", nargs="?", help="plan.yaml in a vlp-plan output directory")
+    p.add_argument("names", metavar="LUMINAIRE", nargs="*", help="luminaires to flash (or --all)")
+    p.add_argument("--all", action="store_true", help="every luminaire of the plan")
+    p.add_argument("--port", help="serial port: a device (/dev/ttyUSB0, COM3), a pseudo-terminal, or sim://...")
+    p.add_argument("--baud", type=cli.positive_int, default=115200, help="line rate [bit/s] (default 115200)")
+    p.add_argument("--bus", action="store_true", help="batch mode: all drivers on one multi-drop bus, no prompts")
+    p.add_argument("--bus-map", metavar="CSV", help="with --bus: 'name,address' rows (default: plan order, from 1)")
+    p.add_argument("--key-file", metavar="FILE", help="site key, hex or raw bytes (or env VLP_SITE_KEY, hex)")
+    p.add_argument("--journal", metavar="JSON", help="as-built journal (default: as-built.json beside PLAN)")
+    p.add_argument("--resume", action="store_true", help="skip drivers the journal records as verified")
+    p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
+    p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
+    p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
+    cli.common_flags(p, "print the outcome per driver as JSON on stdout (progress goes to stderr); needs --bus or "
+                     "--dry-run")
+    return p
+
+
+def _site_key(path: str | None) -> bytes:
+    if path:
+        try:
+            raw = Path(path).read_bytes()
+        except OSError as exc:
+            raise UsageError(f"--key-file {path}: cannot read ({exc.strerror})") from None
+        text = raw.strip()
+        try:
+            key = bytes.fromhex(text.decode("ascii"))
+        except (UnicodeDecodeError, ValueError):
+            key = raw
+    elif os.environ.get("VLP_SITE_KEY"):
+        try:
+            key = bytes.fromhex(os.environ["VLP_SITE_KEY"].strip())
+        except ValueError:
+            raise UsageError("VLP_SITE_KEY must be hex digits") from None
+    else:
+        raise UsageError("no site key: give --key-file FILE or set VLP_SITE_KEY (hex)")
+    if not 16 <= len(key) <= 64:
+        raise UsageError(f"the site key has {len(key)} bytes; it must have 16 to 64")
+    return key
+
+
+def _ports_text() -> str:
+    from serial.tools import list_ports
+
+    ports = [f"{p.device} ({p.description})" for p in list_ports.comports()]
+    return ", ".join(ports) if ports else "none found"
+
+
+def open_port(url: str, baud: int):
+    """Open ``url`` exclusively; a missing or busy port is a :class:`UsageError` naming the ports there are."""
+    import serial
+
+    from planner.flash.sim import protocol_sim
+
+    protocol_sim.register()
+    try:
+        return serial.serial_for_url(url, baudrate=baud, timeout=0.1, exclusive=True)
+    except (serial.SerialException, ValueError, OSError) as exc:
+        text = str(exc)
+        if "lock" in text.lower() or "busy" in text.lower():
+            raise UsageError(f"--port {url}: busy: another program holds it; close it and retry") from None
+        raise UsageError(f"--port {url}: cannot open ({text}); serial ports here: {_ports_text()}") from None
+
+
+def _shown_port(url: str) -> str:
+    """``url`` as the journal and ``--json`` record it: a ``sim://`` key is never written out."""
+    return re.sub(r"key=[^&]*", "key=<hidden>", url)
+
+
+def _targets(doc: dict, args) -> list[dict]:
+    lums = {e["name"]: e for e in doc["luminaires"]}
+    if args.all == bool(args.names):
+        raise UsageError("name the luminaires to flash, or give --all (not both)")
+    missing = [n for n in args.names if n not in lums]
+    if missing:
+        raise UsageError(f"no luminaire {missing[0]!r} in {args.plan}")
+    return [lums[n] for n in args.names] if args.names else list(doc["luminaires"])
+
+
+def _addresses(doc: dict, path: str | None) -> dict[str, int]:
+    if not path:
+        return {e["name"]: k + 1 for k, e in enumerate(doc["luminaires"])}
+    out = {}
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            for n, row in enumerate(csv.reader(f), 1):
+                if not row or row[0].startswith("#") or row[0] == "name":
+                    continue
+                if len(row) != 2 or not row[1].strip().isdigit() or not 1 <= int(row[1]) <= 0xFFFE:
+                    raise InputError(f"{path}: line {n}: expected 'name,address' with address 1..65534")
+                out[row[0].strip()] = int(row[1])
+    except OSError as exc:
+        raise UsageError(f"--bus-map {path}: cannot read ({exc.strerror})") from None
+    return out
+
+
+def _image(doc_path: Path, entry: dict, digest: str, key: bytes | None) -> bytes:
+    from planner.firmware.render import file_name, parse_config_image
+    from planner.flash.flasher import sign_image
+
+    path = doc_path.parent / "firmware" / file_name(entry["name"]) / "vlp_config.bin"
+    try:
+        image = path.read_bytes()
+    except OSError:
+        raise InputError(f"{path}: missing; run vlp-plan again (without --no-firmware)") from None
+    if parse_config_image(image)["plan_hash"] != digest:
+        raise InputError(f"{path}: made for another plan than {doc_path}; run vlp-plan again")
+    return sign_image(image, key) if key else image
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.list_ports:
+        print(_ports_text())
+        return 0
+    if not args.plan:
+        raise UsageError("give a PLAN (see vlp-flash --help)")
+    if args.json and not (args.bus or args.dry_run):
+        raise UsageError("--json needs --bus or --dry-run: interactive mode talks to the installer on this terminal")
+    say = sys.stderr if args.json else sys.stdout  # with --json, stdout carries the JSON document alone
+    report: list[dict] = []
+    doc_path = Path(args.plan)
+    from planner.flash.flasher import flash_driver
+    from planner.flash.journal import Journal
+    from planner.flash.link import Link
+    from planner.flash.wire import ANY_ADDRESS
+    from planner.plan import load_plan, plan_hash
+
+    doc = load_plan(doc_path)
+    digest = plan_hash(doc_path.read_text("utf-8"))
+    targets = _targets(doc, args)
+    key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else _site_key(args.key_file)
+    images = {e["name"]: _image(doc_path, e, digest, key) for e in targets}
+    where = _addresses(doc, args.bus_map) if args.bus else {}
+    if args.bus and (absent := [e["name"] for e in targets if e["name"] not in where]):
+        raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
+    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest)
+    if args.dry_run:
+        for e in targets:
+            skip = args.resume and journal.done(e["name"], hashlib.sha256(images[e["name"]]).hexdigest())
+            action = "skip" if skip else "verify" if args.verify_only else "flash"
+            report.append({"name": e["name"], "id": e["id"], "address": where[e["name"]] if args.bus else None,
+                           "action": action})
+            print(f"{e['name']:<16} id {e['id']:<6} {'address ' + str(where[e['name']]) if args.bus else 'plug in'}"
+                  f"  {'skip (journal: verified)' if skip else action}", file=say)
+        if args.json:
+            print(json.dumps({"plan": str(doc_path), "dry_run": True, "drivers": report}, indent=2))
+        return 0
+    if not args.port:
+        raise UsageError("give --port PORT (vlp-flash --list-ports lists them)")
+    if not args.bus and not sys.stdin.isatty():
+        raise UsageError("interactive mode asks the installer to plug each driver and needs a terminal; "
+                         "use --bus for a batch without prompts")
+    port, shown = open_port(args.port, args.baud), _shown_port(args.port)
+    link, failed = Link(port, args.baud), []
+    try:
+        for k, e in enumerate(targets, 1):
+            name, image = e["name"], images[e["name"]]
+            if args.resume and journal.done(name, hashlib.sha256(image).hexdigest()):
+                print(f"[{k}/{len(targets)}] {name}: skipped (journal: verified)", file=say)
+                report.append({"name": name, "id": e["id"], "status": "skipped", "verified": True})
+                continue
+            if not args.bus:
+                answer = input(f"[{k}/{len(targets)}] plug the driver of {name} (ID {e['id']}, at x {e['x']:.2f} m, "
+                               f"y {e['y']:.2f} m) and press Enter; s skips, q quits: ").strip().lower()
+                if answer == "q":
+                    break
+                if answer == "s":
+                    continue
+            address = where.get(name, ANY_ADDRESS)
+            result = flash_driver(link, address, image, verify_only=args.verify_only)
+            journal.record(name, e["id"], f"{shown}@{address}" if args.bus else shown, result)
+            text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
+            print(f"[{k}/{len(targets)}] {name}: driver {result.serial or '?'}: {text} ({result.seconds:.2f} s)"
+                  + (f": {result.message}" if result.message else ""), file=say, flush=True)
+            report.append({"name": name, "id": e["id"], "address": address if args.bus else None,
+                           "serial": result.serial, "status": result.status, "verified": result.verified,
+                           "seconds": round(result.seconds, 3), "message": result.message})
+            if not result.verified:
+                failed.append(name)
+            if args.bus and sys.stderr.isatty():
+                done = int(30 * k / len(targets))
+                print(f"\r  [{'#' * done}{'.' * (30 - done)}] {k}/{len(targets)}, {len(failed)} failed",
+                      end="" if k < len(targets) else "\n", file=sys.stderr, flush=True)
+    finally:
+        port.close()
+    if args.json:
+        print(json.dumps({"plan": str(doc_path), "port": shown, "journal": str(journal.path), "drivers": report,
+                          "verified": sum(r["verified"] for r in report), "failed": len(failed)}, indent=2))
+    if failed:
+        print(f"vlp-flash: {len(failed)} driver(s) failed and keep their previous configuration: "
+              f"{', '.join(failed[:10])}{' ...' if len(failed) > 10 else ''}; journal {journal.path}", file=sys.stderr)
+        return ExitCode.CHECK_FAILED
+    return 0
+
+
+def console_main(argv: list[str] | None = None) -> int:
+    return cli.console_main(argv, main, "vlp-flash")
+
+
+if __name__ == "__main__":
+    sys.exit(console_main())

@@ -1,0 +1,213 @@
+"""``vlp-plan LAYOUT [--leds N] [-o OUTDIR] ...``: read a drawing, plan its IDs, write the outputs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from planner import __version__
+from planner.cli import common as cli
+from planner.defaults import (DRIVER_MAX_HZ, ERROR_POSES_PER_M2, LINE_CODE_NAMES, LOCATE_METHODS, SCHEMES, UNIT_TO_M)
+from planner.errors import ExitCode, UsageError
+
+LOW_COVERAGE = 0.5
+"""Below this share of decodable poses, vlp-plan warns that the site is poorly covered."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = cli.Parser(
+        prog="vlp-plan",
+        description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
+        "(DXF) or a luminaire list (YAML/CSV), give every luminaire a short ID (the paper's region code, "
+        "or shorter IDs that keep every camera window unique), verify the plan under a tilted camera, and "
+        "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
+        "configuration (firmware/) into OUTDIR.",
+        epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
+        "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
+    )
+    p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .yaml/.yml or .csv")
+    p.add_argument("--leds", type=cli.positive_int, metavar="N",
+                   help="expected luminaire count (a mismatch is an error); with only a room outline, "
+                   "lay out N luminaires on a lattice inside it")
+    p.add_argument("-o", "--outdir", metavar="OUTDIR", help="output directory (default: <layout>-vlp next to LAYOUT)")
+    g = p.add_argument_group("reading")
+    g.add_argument("--units", choices=sorted(UNIT_TO_M), help="coordinate unit of LAYOUT, overriding the file")
+    g.add_argument("--preset", choices=["auto", "dialux", "revit", "generic"], default="auto",
+                   help="DXF luminaire patterns (default: auto = all presets)")
+    g.add_argument("--layer", action="append", default=[], metavar="PATTERN",
+                   help="DXF layer pattern of luminaires (fnmatch, repeatable; replaces the preset's)")
+    g.add_argument("--block", action="append", default=[], metavar="PATTERN",
+                   help="DXF block-name pattern of luminaires (repeatable; replaces the preset's)")
+    g.add_argument("--height", type=cli.positive_float, metavar="M",
+                   help="mounting height [m] where the layout gives none (default 2.5)")
+    g.add_argument("--radius", type=cli.positive_float, metavar="M",
+                   help="LED radius [m] where the layout gives none (default 0.1)")
+    g = p.add_argument_group("planning")
+    g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
+                   help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
+                   "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
+    g.add_argument("--time-limit", type=cli.non_negative_float, default=10.0, metavar="S",
+                   help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10)")
+    g.add_argument("--seed", type=int, default=0, help="random seed of the search and the pose sample (default 0)")
+    g.add_argument("--check-distance", type=cli.positive_int, default=1, metavar="D",
+                   help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
+                   "detected (default 1: no check bits)")
+    cli.add_verify_flags(p)
+    g = p.add_argument_group("modulation")
+    g.add_argument("--line-code", choices=list(LINE_CODE_NAMES), default="manchester",
+                   help="line code of the frames: manchester (2 chips per bit, runs <= 3) or 4b6b (IEEE 802.15.7, "
+                   "1.5 chips per bit, runs <= 5); default manchester")
+    g.add_argument("--driver-max-hz", type=cli.positive_float, default=DRIVER_MAX_HZ, metavar="HZ",
+                   help=f"fastest chip rate the luminaire drivers switch (default {DRIVER_MAX_HZ:g})")
+    g = p.add_argument_group("accuracy")
+    g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
+                   help="positioning method the error map simulates (default perspective; paper: the paper's "
+                   "weak-perspective method)")
+    g.add_argument("--error-poses-per-m2", type=cli.non_negative_float, default=ERROR_POSES_PER_M2, metavar="N",
+                   help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
+                   "0 skips the map)")
+    g = p.add_argument_group("firmware")
+    g.add_argument("--templates", metavar="DIR",
+                   help="render every *.j2 template in DIR per luminaire instead of the bundled ones (docs/firmware.md)")
+    g.add_argument("--mcu-clock-hz", type=cli.positive_float, default=16e6, metavar="HZ",
+                   help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6)")
+    g.add_argument("--image-version", type=cli.positive_int, default=1, metavar="N",
+                   help="version written into every configuration image; drivers refuse older ones (default 1)")
+    g.add_argument("--no-firmware", action="store_true", help="do not write OUTDIR/firmware/")
+    g = p.add_argument_group("output")
+    g.add_argument("--no-map", action="store_true", help="do not draw map.png, coverage.png and error.png")
+    g.add_argument("--no-report", action="store_true",
+                   help="do not write site-report.html and site-report.pdf (vlp-report writes them later)")
+    g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
+    g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"vlp-plan {__version__}")
+    return p
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
+    args = build_parser().parse_args(argv)
+    from planner.pipeline import (FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
+                           write_outputs)
+
+    if args.templates and not any(Path(args.templates).glob("*.j2")):
+        raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
+                         if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
+    t0 = time.perf_counter()
+    read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius)
+    cli.progress(f"reading {args.layout}")
+    layout = read_layout(args.layout, args.leds, read_opts)
+    cli.progress(f"planning {len(layout.luminaires)} luminaires")
+    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, cli.camera_from_args(args), not args.no_verify,
+                                         args.poses_per_m2, args.tolerance, args.check_distance,
+                                         args.locate_method, args.error_poses_per_m2, args.line_code,
+                                         args.driver_max_hz, args.install_tolerance))
+    outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
+    cli.progress(f"writing {outdir}")
+    firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
+                                                             args.mcu_clock_hz, args.image_version)
+    written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware, with_report=not args.no_report)
+    a, g = plan.assignment, plan.graph
+    summary = {
+        "layout": str(args.layout),
+        "luminaires": len(layout.luminaires),
+        "unit": layout.unit,
+        "unit_reason": layout.unit_reason,
+        "notes": list(layout.notes),
+        "neighbour_pairs": g.graph.number_of_edges(),
+        "bipartite": g.bipartite,
+        "odd_cycle": [layout.luminaires[v].name for v in g.odd_cycle] if g.odd_cycle else None,
+        "scheme": a.scheme,
+        "method": a.method,
+        "bits": a.bits,
+        "naive_bits": a.naive_bits,
+        "lower_bound_bits": a.lower_bound_bits,
+        "efficiency": round(a.efficiency, 4),
+        "regions": int(a.regions.max()) + 1,
+        "max_id": a.max_id,
+        "check_distance": plan.check.distance,
+        "word_bits": plan.check.word_bits,
+        "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
+                         if plan.verification is not None else None),
+        "schemes_considered": plan.considered,
+        "modulation": plan.modulation.summary() if plan.modulation is not None else None,
+        "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
+        "outdir": str(outdir),
+        "files": [str(p) for p in written],
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        _print_summary(summary)
+    v = plan.verification
+    if v is not None and v.coverage < LOW_COVERAGE:
+        print(f"vlp-plan: warning: only {100 * v.coverage:.1f} % of sampled poses decode "
+              f"({v.count(3)} of {v.poses} see fewer than 3 whole LEDs): the luminaires may be too far apart "
+              "for this camera; see coverage.png", file=sys.stderr)
+    if v is not None and v.conflicts:
+        print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
+              "scheme; see coverage.png and vlp-verify", file=sys.stderr)
+        summary["exit_code"] = ExitCode.CHECK_FAILED
+    elif v is not None and not v.clean:
+        first = v.window_set.conflicts[0]
+        names = [lum.name for lum in plan.layout.luminaires]
+        print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} triangles that may be windows read like "
+              f"other luminaires under the {plan.assignment.scheme} scheme, first "
+              + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
+              file=sys.stderr)
+        summary["exit_code"] = ExitCode.CHECK_FAILED
+    return summary
+
+
+def _print_summary(s: dict) -> None:
+    from planner.report.content import length_text
+
+    print(f"vlp-plan {__version__}: {s['layout']}")
+    print(f"  layout   {s['luminaires']} luminaires; unit {s['unit']} ({s['unit_reason']})")
+    for note in s["notes"]:
+        print(f"           note: {note}")
+    shape = "bipartite" if s["bipartite"] else f"NOT bipartite (odd cycle {' - '.join(s['odd_cycle'])})"
+    print(f"  graph    {s['neighbour_pairs']} neighbour pairs, {shape}")
+    print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bit{'s' if s['bits'] != 1 else ''} "
+          f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
+          f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
+          f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
+    if s["check_distance"] > 1:
+        print(f"  check    sent as {s['word_bits']}-bit codewords ({s['word_bits'] - s['bits']} check bits, "
+              f"Hamming distance {s['check_distance']}: up to {s['check_distance'] - 1} misread bits detected)")
+    if s["schemes_considered"] and len(s["schemes_considered"]) > 1:
+        parts = []
+        for name, c in s["schemes_considered"].items():
+            eff = 1 - c["bits"] / s["naive_bits"] if s["naive_bits"] else 0.0
+            amb = c["ambiguous_poses"]
+            clash = c.get("window_set_conflicts")
+            state = ("not verified" if amb is None else f"{amb} ambiguous poses" if amb else
+                     f"{clash} triangles read alike" if clash else "verified")
+            parts.append(f"{name} {c['bits']} bits ({100 * eff:.0f} %, {state})")
+        print(f"  schemes  {'; '.join(parts)}; naive {s['naive_bits']} bits")
+    v = s["verification"]
+    if v:
+        print(f"  verify   {cli.verification_line(v)}")
+    m = s["modulation"]
+    if m:
+        print(f"  frame    {m['line_code']}, {m['frame_chips']} chips at {m['chip_rate_hz'] / 1e3:g} kHz "
+              f"({m['frame_period_s'] * 1e3:.2f} ms); {m['frames_in_smallest_image']:.1f} frames in the smallest LED "
+              f"image ({m['smallest_image_rows']:.0f} rows)")
+    a = s["accuracy"]
+    if a and a["located"]:
+        print(f"  accuracy {a['method']} method: median {length_text(a['median_m'])}, 90 % {length_text(a['p90_m'])}, "
+              f"max {length_text(a['max_m'])} over {a['located']} simulated poses (edge noise {a['noise_px']:g} px)")
+    print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
+
+
+
+def console_main(argv: list[str] | None = None) -> int:
+    return cli.console_main(argv, main, "vlp-plan")
+
+
+if __name__ == "__main__":
+    sys.exit(console_main())

@@ -1,0 +1,107 @@
+"""``vlp-verify PLAN``: verify an existing (perhaps hand-edited) plan.
+
+Exit codes: 0 every sampled pose that sees a window decodes uniquely and no
+triangle that may be a window reads like another triple of the site; 3 otherwise
+(the first conflicting luminaire triples are named); 1 bad input; 2 usage. The
+triangles are proved anew (:mod:`planner.verify.proof`) where the site is within
+the proof's reach; the summary says whether decodability is proved or sampled only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from planner.cli import common as cli
+from planner.defaults import INSTALL_TOLERANCE_M
+from planner.errors import ExitCode, UsageError
+
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = cli.Parser(
+        prog="vlp-verify",
+        description="Verify a plan.yaml: sample camera poses over the site, and find every triangle of luminaires "
+        "that may be a window (the three LEDs the camera uses); check that each names exactly one place, "
+        "against every other triple of the site.",
+        epilog="Exit codes: 0 decodable everywhere sampled and no triangle that may be a window reads like another "
+        "triple, 3 otherwise, 1 bad input, 2 usage error.",
+    )
+    p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
+    cli.add_verify_flags(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the pose sample (default 0)")
+    p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
+    cli.common_flags(p, "print the verification summary as JSON")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.map and not Path(args.map).resolve().parent.is_dir():
+        raise UsageError(f"--map {args.map}: directory {Path(args.map).parent} does not exist")
+    import numpy as np
+
+    from planner.camera import Camera
+    from planner.plan import load_plan
+    from planner.verify.verify import check_window_set, side_bound, verify_plan
+    from planner.verify.proof import prove_window_set
+
+    doc = load_plan(args.plan)
+    lums = doc["luminaires"]
+    xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums], dtype=float)
+    radii = np.array([e["radius"] for e in lums], dtype=float)
+    ids = np.array([e["id"] for e in lums], dtype=np.int64)
+    camera = cli.camera_from_args(args) if args.camera else Camera.from_dict(doc.get("camera") or {})
+    result = verify_plan(xyz, radii, ids, doc.get("outline"), camera, per_m2=args.poses_per_m2, seed=args.seed,
+                         tolerance_m=args.tolerance)
+    recorded = (doc.get("verification") or {}).get("window_set") or {}
+    install = args.install_tolerance if args.install_tolerance is not None else \
+        float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
+    # The proof is made anew from the luminaires and the camera, never read from the plan; without
+    # one, only the sampled side bound may come from the plan.
+    proof = prove_window_set(xyz, radii, camera, install)
+    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0))
+                if recorded.get("max_side_from") != "proof" else 0.0)
+    result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
+                                                         install_tolerance_m=install, proof=proof))
+    summary = result.summary([e["name"] for e in lums], limit=10)
+    if args.map:
+        _write_map(doc, args.plan, xyz, radii, ids, camera, result, Path(args.map))
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(f"vlp-verify: {args.plan}: {cli.verification_line(summary)}")
+        for group in summary["first_conflicts"] + summary["window_set"]["first_conflicts"]:
+            print("  same key: " + " = ".join("(" + ", ".join(t) + ")" for t in group))
+    return 0 if result.clean else ExitCode.CHECK_FAILED
+
+
+def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> None:
+    """Coverage map of a loaded plan (rebuilds the few plan objects the map needs)."""
+    import numpy as np
+
+    from planner.codes.assignment import Assignment
+    from planner.graph import build_graph
+    from planner.layout.model import Layout, Luminaire
+    from planner.plan import Plan
+    from planner.report.maps import render_coverage
+
+    lums = tuple(Luminaire(e["name"], *map(float, (e["x"], e["y"], e["z"], e["radius"]))) for e in doc["luminaires"])
+    layout = Layout(lums, None, str(plan_path))
+    regions = np.array([e["region"] for e in doc["luminaires"]])
+    assignment = Assignment(str(doc.get("scheme", "?")), ids, regions, 0, 0, 0, "", {})
+    plan = Plan(layout, build_graph(xyz[:, :2]), assignment, camera, result)
+    tmp = path.with_name(f".{path.name}.tmp")
+    render_coverage(plan, tmp)
+    tmp.replace(path)
+
+
+def console_main(argv: list[str] | None = None) -> int:
+    return cli.console_main(argv, main, "vlp-verify")
+
+
+if __name__ == "__main__":
+    sys.exit(console_main())

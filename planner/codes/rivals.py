@@ -1,0 +1,118 @@
+"""Rivals: every other set of three luminaires on the site that reads like a given window.
+
+PRODUCT.md defines a pose as ambiguous when *another set of luminaires anywhere on
+the site* has the same key: the same IDs in counter-clockwise order and a triangle
+of the same shape. A rival need not be a window of any sampled pose, so this module
+enumerates all physical triples of the site whose sides could match (each side at
+most the longest queried side plus the tolerance), not the windows some sample
+produced. Two triples match when, for one of the three cyclic rotations, the IDs are
+equal and every pair of corresponding sides differs by at most the tolerance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from planner.verify.windows import twice_signed_area
+
+
+def site_triples(xy: np.ndarray, max_side_m: float) -> np.ndarray:
+    """All triples ``i < j < k`` of points ``xy`` (N x 2 [m]) whose three sides are at most ``max_side_m``."""
+    return triples_of_pairs(cKDTree(xy).query_pairs(max_side_m, output_type="ndarray"), len(xy))
+
+
+def triples_of_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
+    """All triples ``i < j < k`` of ``n`` points whose three pairs are among ``pairs`` (M x 2, ``i < j``)."""
+    if len(pairs) == 0:
+        return np.empty((0, 3), dtype=np.int64)
+    pairs = np.sort(np.asarray(pairs, dtype=np.int64), axis=1)
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    code = pairs[:, 0] * n + pairs[:, 1]  # sorted, since pairs are lexsorted
+    start = np.searchsorted(pairs[:, 0], np.arange(n + 1))
+    deg = np.diff(start)
+    # For every first vertex i, every two of its higher neighbours j < k; keep those with j-k a pair.
+    out = []
+    for d in np.unique(deg[deg >= 2]):
+        rows = np.flatnonzero(deg == d)
+        a, b = np.triu_indices(int(d), 1)
+        nb = pairs[start[rows][:, None] + np.arange(d), 1]  # (rows, d) neighbours, ascending
+        j, k = nb[:, a].ravel(), nb[:, b].ravel()
+        i = np.repeat(rows, len(a))
+        pos = np.searchsorted(code, j * n + k)
+        ok = (pos < len(code)) & (code[np.minimum(pos, len(code) - 1)] == j * n + k)
+        out.append(np.column_stack([i[ok], j[ok], k[ok]]))
+    return np.concatenate(out) if out else np.empty((0, 3), dtype=np.int64)
+
+
+def longest_side(triples: np.ndarray, xyz: np.ndarray) -> float:
+    """Longest side of any of ``triples`` (M x 3 indices into ``xyz``) [m]; 0 for none."""
+    if len(triples) == 0:
+        return 0.0
+    p = xyz[np.asarray(triples, dtype=np.int64).reshape(-1, 3)]
+    return float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max())
+
+
+def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """The triples in counter-clockwise plan order (as the receiver reads IDs)."""
+    p = xy[triples]
+    return np.where((twice_signed_area(p) < 0)[:, None], triples[:, [0, 2, 1]], triples)
+
+
+@dataclass(frozen=True)
+class _Readings:
+    """Each oriented triple in every rotation whose ID sequence is the smallest: code, sides, triple."""
+
+    code: np.ndarray
+    sides: np.ndarray
+    triple: np.ndarray
+    row: np.ndarray
+
+
+def _readings(triples: np.ndarray, xyz: np.ndarray, ids: np.ndarray) -> _Readings:
+    t = counter_clockwise(np.asarray(triples, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
+    k = int(ids.max()) + 1
+    codes, sides, trip, rows = [], [], [], []
+    rot = [np.roll(t, -r, axis=1) for r in range(3)]
+    c = [(ids[x[:, 0]] * k + ids[x[:, 1]]) * k + ids[x[:, 2]] for x in rot]
+    best = np.minimum(np.minimum(c[0], c[1]), c[2])
+    for r in range(3):  # several rotations tie only when the three IDs are equal
+        keep = c[r] == best
+        x = rot[r][keep]
+        p = xyz[x]
+        codes.append(c[r][keep])
+        sides.append(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2))  # side s joins vertex s and s+1
+        trip.append(x)
+        rows.append(np.flatnonzero(keep))
+    return _Readings(np.concatenate(codes), np.concatenate(sides), np.concatenate(trip), np.concatenate(rows))
+
+
+def find_rivals(windows: np.ndarray, xyz: np.ndarray, ids: np.ndarray, tolerance_m: float,
+                site: np.ndarray | None = None) -> list[tuple[int, tuple[int, int, int]]]:
+    """Pairs (window row, rival triple) for every physical triple that reads like a window.
+
+    ``windows`` (M x 3 luminaire indices), ``xyz`` (N x 3 [m]), ``ids`` (N,) the IDs,
+    ``tolerance_m`` the largest side difference the receiver cannot tell apart [m].
+    ``site`` are the triples searched (default: all triples short enough to match).
+    Rival triples are returned counter-clockwise, sorted, without repeats per window.
+    """
+    windows = np.asarray(windows, dtype=np.int64).reshape(-1, 3)
+    ids = np.asarray(ids, dtype=np.int64)
+    if len(windows) == 0:
+        return []
+    if site is None:
+        site = site_triples(xyz[:, :2], longest_side(windows, xyz) + tolerance_m + 1e-9)
+    q, s = _readings(windows, xyz, ids), _readings(site, xyz, ids)
+    order = np.argsort(s.code, kind="stable")
+    s_code = s.code[order]
+    lo, hi = np.searchsorted(s_code, q.code, "left"), np.searchsorted(s_code, q.code, "right")
+    n = hi - lo
+    qi = np.repeat(np.arange(len(q.code)), n)
+    si = order[np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
+    near = np.all(np.abs(q.sides[qi] - s.sides[si]) <= tolerance_m + 1e-9, axis=1)
+    same = np.sort(q.triple[qi], axis=1) == np.sort(s.triple[si], axis=1)
+    hit = near & ~same.all(axis=1)
+    found = {(int(q.row[a]), tuple(int(v) for v in s.triple[b])) for a, b in zip(qi[hit], si[hit])}
+    return sorted(found)

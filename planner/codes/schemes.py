@@ -1,0 +1,211 @@
+"""Schemes beyond the paper's: ``window`` (shortest IDs with every window unique) and ``unique``.
+
+Every fix needs three LEDs, so it is enough that every *window* the camera can
+produce on this layout is unique, not every neighbouring pair. Windows are
+collected from a dense pose sample (:func:`planner.verify.verify.design_windows`, at
+least ``DESIGN_PER_M2``) and joined by every triangle of the window set
+(:mod:`planner.verify.window_set`); IDs are found by :mod:`planner.codes.window`, with every
+other triple of the site that could read like a window (:mod:`planner.codes.rivals`) as a
+passive triple, which no window may read like. The result
+is checked on ``CHECK_SEEDS`` independent pose samples at the verification
+density; windows that only those samples found are added and the IDs repaired,
+up to ``REPAIR_ROUNDS`` passes. The last check sample (seed
+``seed``) is the verification reported in the plan.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.codes import window as window_code
+from planner.codes.assignment import Assignment, bits_for, tile_regions
+from planner.camera import Camera
+from planner.graph import NeighbourGraph
+from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, site_triples
+from planner.verify.verify import Verification, classify, design_windows, observe
+from planner.verify.proof import Proof
+from planner.defaults import INSTALL_TOLERANCE_M
+from planner.verify.window_set import window_superset
+from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
+
+
+def _polygon_area(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+
+REPAIR_ROUNDS = 6
+"""Passes over the check samples; each pass adds the windows they found and repairs the IDs."""
+
+CHECK_SEEDS = 2
+"""Independent pose samples the IDs are checked and repaired against (the last is the one reported)."""
+
+DESIGN_PER_M2 = 2000.0
+"""Least density of the design sample [1/m^2]: rare windows must be in it to be made unique."""
+
+WIDEN_AFTER = 3
+"""Repair passes after which labels are made afresh with one bit more, if rivals remain."""
+
+PROOF_WIDEN_AFTER = 1
+"""... and, designing against a proved window set (whose conflicts arrive many at a time), after this many."""
+
+MAX_READINGS = 200_000
+"""Above this many keyed readings of the site's short triples, rivals join the ID search as they are found."""
+
+DESIGN_MAX_POSES = 2_000_000
+"""Cap on the design sample, for very large sites."""
+
+
+def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.ndarray | None = None):
+    """The windows (active) and every triple of the site that could read like one (passive).
+
+    A triple's shape is its cell: each side, counter-clockwise from the canonical vertex,
+    in steps of ``tolerance_m``. A window is keyed in its own cell; every triple short
+    enough (windows included) also sits, passively, in each window-holding cell within one
+    step per side, in each rotation, so that a window and anything whose sides are within
+    the tolerance of its own share a cell. ``others`` limits the passive triples to those
+    (and the windows). Returns (triples, shape, symmetric, active).
+    """
+    windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
+    if len(windows) == 0:
+        return windows, np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
+    side = lambda t: np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
+    longest = longest_side(windows, xyz)
+    if others is None:
+        others = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
+    site = counter_clockwise(np.unique(np.sort(np.vstack([windows, others]), axis=1), axis=0), xyz[:, :2])
+    win = counter_clockwise(windows, xyz[:, :2])
+    base = int(np.ceil((longest + 2 * tolerance_m) / tolerance_m)) + 2
+
+    def code(c):
+        return (c[..., 0] * base + c[..., 1]) * base + c[..., 2]
+
+    def canonical(c):
+        return code(c) <= np.minimum(code(np.roll(c, -1, axis=-1)), code(np.roll(c, -2, axis=-1)))
+
+    # windows: their own cell, in the rotation that makes it canonical
+    cells = np.floor(side(win) / tolerance_m).astype(np.int64)
+    rot = np.argmin(np.stack([code(np.roll(cells, -r, axis=1)) for r in range(3)], axis=1), axis=1)
+    idx = (np.arange(3)[None, :] + rot[:, None]) % 3
+    act_t = np.take_along_axis(win, idx, axis=1)
+    act_c = code(np.take_along_axis(cells, idx, axis=1))
+    held = np.unique(act_c)
+    # every short triple, every rotation, every neighbouring cell that holds a window
+    s_cells = np.floor(side(site) / tolerance_m).astype(np.int64)
+    offsets = np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij")).reshape(3, -1).T
+    pas_t, pas_c = [], []
+    for r in range(3):
+        t_r, c_r = np.roll(site, -r, axis=1), np.roll(s_cells, -r, axis=1)
+        for o in offsets:
+            c = c_r + o
+            ok = canonical(c) & np.isin(code(c), held) & (c >= 0).all(axis=1)
+            pas_t.append(t_r[ok])
+            pas_c.append(code(c[ok]))
+    pas_t, pas_c = np.concatenate(pas_t), np.concatenate(pas_c)
+    sym_cell = lambda c: (c // (base * base) == (c // base) % base) & ((c // base) % base == c % base)
+    # one copy per cell and reading (any rotation reads alike in a 3-fold symmetric cell);
+    # never a window's own triple in its own cell
+    reading = np.where(sym_cell(pas_c)[:, None], np.sort(pas_t, axis=1), pas_t)
+    _, first = np.unique(np.column_stack([pas_c, reading]), axis=0, return_index=True)
+    pas_t, pas_c = pas_t[first], pas_c[first]
+    own = {(int(c), *sorted(t)) for c, t in zip(act_c.tolist(), act_t.tolist())}
+    keep = np.array([(int(c), *sorted(t)) not in own for c, t in zip(pas_c.tolist(), pas_t.tolist())], dtype=bool)
+    pas_t, pas_c = pas_t[keep], pas_c[keep]
+    shape = np.searchsorted(held, np.concatenate([act_c, pas_c]))
+    active = np.r_[np.ones(len(act_c), bool), np.zeros(len(pas_c), bool)]
+    return np.vstack([act_t, pas_t]), shape.astype(np.int64), sym_cell(held), active
+
+
+def _protected(sampled: np.ndarray, xyz: np.ndarray, radii: np.ndarray, tolerance_m: float,
+               install_tolerance_m: float) -> tuple[np.ndarray, float]:
+    """The windows to protect first: the sampled ones and every triangle the empty-triangle rule
+    allows up to the longest sampled side plus the tolerance; returns them and that bound [m]."""
+    if len(sampled) == 0:
+        return sampled, 0.0
+    bound = longest_side(sampled, xyz) + tolerance_m
+    extra = window_superset(xyz, radii, bound, install_tolerance_m)
+    return np.unique(np.sort(np.vstack([sampled, extra]), axis=1), axis=0), bound
+
+
+def assign_unique(xy: np.ndarray, graph: NeighbourGraph) -> Assignment:
+    """One ID per luminaire, 1..N in layout order: the naive scheme."""
+    n = len(xy)
+    ids = np.arange(1, n + 1, dtype=np.int64)
+    bits = bits_for(n)
+    return Assignment("unique", ids, tile_regions(xy, graph, n), bits, bits, bits, "one ID per luminaire", {})
+
+
+def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera, *,
+                  seed: int = 0, time_budget: float = 10.0, per_m2: float = POSES_PER_M2,
+                  tolerance_m: float = CONGRUENCE_TOLERANCE_M, install_tolerance_m: float = INSTALL_TOLERANCE_M,
+                  observations: dict | None = None, proof: Proof | None = None) -> tuple[Assignment, Verification]:
+    """The window scheme, verified: IDs under which no protected window reads like another triple.
+
+    Returns the assignment and its final verification (on poses of seed ``seed``).
+    ``observations`` (seed -> :class:`Observation` at ``per_m2``) is filled and reused,
+    so a caller verifying other schemes on the same samples observes each once.
+    """
+    seen = {} if observations is None else observations
+
+    def checked(s: int, labels: np.ndarray) -> Verification:
+        if s not in seen:
+            seen[s] = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=s, tolerance_m=tolerance_m)
+        return classify(seen[s], labels + 1)
+
+    n = len(xyz)
+    area = working_area(xyz[:, :2], outline)
+    area_m2 = max(_polygon_area(area), 1e-6)
+    design_density = min(max(5 * per_m2, DESIGN_PER_M2), max(DESIGN_MAX_POSES / area_m2, 2 * per_m2))
+    design = design_windows(xyz, radii, outline, camera, per_m2=design_density, seed=seed + 1,
+                            tolerance_m=tolerance_m)
+    windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
+    others, first = None, windows
+    full = _keyed(windows, xyz, tolerance_m)
+    lazy = len(full[0]) > MAX_READINGS
+    if lazy:  # too many short triples to key them all: rivals join as they are found
+        others = windows
+
+    def solve(repair_from=None, min_bits=1):
+        fresh = others is None and repair_from is None and len(windows) == len(first)
+        problem = full if fresh else _keyed(windows, xyz, tolerance_m, others)
+        if repair_from is not None:
+            got = window_code.repair_labels(repair_from[0], n, *problem[:3], repair_from[1], seed=seed,
+                                            max_steps=200_000, active=problem[3])
+            if got is not None:
+                return None, got, repair_from[1], problem
+        c = window_code.assign_window_code(n, *problem[:3], seed=seed, time_budget=time_budget,
+                                           active=problem[3], min_bits=min_bits)
+        return c, c.labels, c.K, problem
+
+    code, labels, k, problem = solve()
+    method = code.method
+    check_seeds = [seed + 1000 * (r + 1) for r in range(CHECK_SEEDS - 1)] + [seed]
+    for round_ in range(REPAIR_ROUNDS + 1):
+        found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
+        missed, check = [], None
+        if proof is not None and proof.complete:  # proved windows that read alike join the protected ones
+            missed.extend(tuple(proof.triangles[r]) for r, _ in find_rivals(proof.triangles, xyz, labels + 1,
+                                                                              tolerance_m))
+        for s in check_seeds:
+            check = checked(s, labels)
+            missed.extend(g[0] for g in check.conflicts)  # a sampled window outside the set; rivals follow
+        if (not found and not missed) or round_ == REPAIR_ROUNDS:
+            break
+        windows = np.vstack([windows, np.array(missed, dtype=np.int64).reshape(-1, 3)])
+        if lazy:
+            others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])
+        widen_after = PROOF_WIDEN_AFTER if proof is not None and proof.complete else WIDEN_AFTER
+        if round_ == widen_after:  # repairs at this width keep making new rivals: one bit more
+            new_code, labels, k, problem = solve(min_bits=(k - 1).bit_length() + 1)
+        else:
+            new_code, labels, k, problem = solve((labels, k))
+        code = new_code or code
+        method = f"{code.method}, repaired against rivals and verification"
+    ids = labels.astype(np.int64) + 1
+    bits = bits_for(max(k, 2))
+    detail = {"windows": int(problem[3].sum()), "sampled_windows": len(design.windows),
+              "max_side_m": round(bound, 4), "rivals": "lazy" if lazy else "all",
+              "labels": int(k), "optimal": bool(code.optimal and bits == code.bits),
+              "lower_bound_labels": int(code.lower_bound_labels)}
+    assignment = Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, bits_for(n),
+                            int(code.lower_bound_bits), method, detail)
+    return assignment, check

@@ -1,0 +1,1 @@
+"""Per-luminaire firmware artifacts: the configuration header, JSON and binary image."""

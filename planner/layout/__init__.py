@@ -1,0 +1,1 @@
+"""The layout stage: luminaires in metres and the room they light, read from drawings and tables."""

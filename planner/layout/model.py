@@ -1,0 +1,208 @@
+"""The layout stage: luminaires with positions in metres, and the room they light.
+
+Readers (``dxf_layout``, ``table_layout``) build a :class:`Layout`; this module
+holds the data type, the checks every layout must pass, and the lattice fill
+that places ``N`` luminaires inside a room outline.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from matplotlib.path import Path as _PolygonPath
+from scipy.spatial import cKDTree
+
+from planner.errors import InputError
+
+DEFAULT_RADIUS_M = 0.1
+"""LED radius when the drawing or layout does not give one [m] (PRODUCT.md)."""
+
+DEFAULT_MOUNT_HEIGHT_M = 2.5
+"""Ceiling height when neither drawing nor flags give one [m] (the paper's rig)."""
+
+
+@dataclass(frozen=True)
+class Luminaire:
+    """One ceiling luminaire.
+
+    Attributes
+    ----------
+    name : str
+        Unique name on the site (from the drawing, the layout file, or generated).
+    x, y, z : float
+        Centre of the LED disc in site coordinates [m]; ``z`` is the mounting height.
+    radius : float
+        Radius of the circular LED [m].
+    source : dict
+        Where it came from: ``{"file": ..., "handle": ..., "layer": ..., "block": ...,
+        "element_id": ..., "line": ...}``; only the keys that apply are present.
+    """
+
+    name: str
+    x: float
+    y: float
+    z: float
+    radius: float = DEFAULT_RADIUS_M
+    source: dict = field(default_factory=dict, compare=False)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Luminaires of one site, all in metres.
+
+    Attributes
+    ----------
+    luminaires : tuple of Luminaire
+        In a deterministic order (as read, after merging duplicates).
+    outline : tuple of (x, y) or None
+        Room outline polygon [m], if the input had one.
+    source_path : str
+        The input file.
+    unit : str
+        Unit the input's coordinates were in (``"mm"``, ``"m"``, ...).
+    unit_reason : str
+        Why that unit was used, for the summary.
+    notes : tuple of str
+        What the reader fixed or decided (merged parts, recovered entities, ...).
+    fill_height_m, fill_radius_m : float or None
+        Mounting height and LED radius the file states for luminaires laid out by
+        ``--leds`` in its outline [m].
+    """
+
+    luminaires: tuple[Luminaire, ...]
+    outline: tuple[tuple[float, float], ...] | None = None
+    source_path: str = ""
+    unit: str = "m"
+    unit_reason: str = "stated by the layout"
+    notes: tuple[str, ...] = ()
+    fill_height_m: float | None = None
+    fill_radius_m: float | None = None
+
+    @property
+    def xy(self) -> np.ndarray:
+        """Positions in plan, shape (N, 2) [m]."""
+        return np.array([(lum.x, lum.y) for lum in self.luminaires], dtype=float).reshape(-1, 2)
+
+    @property
+    def xyz(self) -> np.ndarray:
+        """Positions, shape (N, 3) [m]."""
+        return np.array([(lum.x, lum.y, lum.z) for lum in self.luminaires], dtype=float).reshape(-1, 3)
+
+    def with_note(self, note: str) -> "Layout":
+        return replace(self, notes=self.notes + (note,))
+
+
+def check_layout(layout: Layout, expected: int | None = None) -> Layout:
+    """Check what every plannable layout must satisfy, or raise :class:`InputError`.
+
+    At least three luminaires (a fix needs three), unique names, the expected
+    count when ``--leds`` gave one, and no two luminaires closer than the sum of
+    their radii (they would overlap: usually a unit or duplication error).
+    """
+    where = layout.source_path or "layout"
+    n = len(layout.luminaires)
+    if expected is not None and n != expected:
+        raise InputError(
+            f"{where}: found {n} luminaires but --leds says {expected}; "
+            "fix the drawing's layer/block selection or the --leds count"
+        )
+    if n < 3:
+        raise InputError(
+            f"{where}: only {n} luminaire(s) found; positioning needs at least 3 "
+            "(check the layer and block patterns, or use --leds N with a room outline)"
+        )
+    names = [lum.name for lum in layout.luminaires]
+    if len(set(names)) != n:
+        dup = sorted({x for x in names if names.count(x) > 1})[0]
+        raise InputError(f"{where}: luminaire name {dup!r} is used more than once; names must be unique")
+    xy = layout.xy
+    radii = np.array([lum.radius for lum in layout.luminaires])
+    if not np.all(np.isfinite(xy)) or not np.all(radii > 0):
+        raise InputError(f"{where}: a luminaire has a non-finite position or a radius <= 0")
+    tree = cKDTree(xy)
+    dist, idx = tree.query(xy, k=2)
+    gap = dist[:, 1] - (radii + radii[idx[:, 1]])
+    worst = int(np.argmin(gap))
+    if gap[worst] < 0:
+        a, b = layout.luminaires[worst], layout.luminaires[int(idx[worst, 1])]
+        raise InputError(
+            f"{where}: luminaires {a.name!r} and {b.name!r} are {dist[worst, 1]:.3f} m apart, "
+            f"closer than their diameters; check the units (--units) or remove the duplicate"
+        )
+    return layout
+
+
+def principal_angle_rad(outline: np.ndarray) -> float:
+    """Direction of the outline's longest edge [rad], folded into [0, pi/2)."""
+    edges = np.diff(np.vstack([outline, outline[:1]]), axis=0)
+    lengths = np.hypot(edges[:, 0], edges[:, 1])
+    e = edges[int(np.argmax(lengths))]
+    return float(math.atan2(e[1], e[0]) % (math.pi / 2))
+
+
+def fill_outline(
+    outline: np.ndarray, count: int, mount_height_m: float, radius_m: float = DEFAULT_RADIUS_M
+) -> tuple[list[Luminaire], str]:
+    """Lay out ``count`` luminaires on a regular lattice inside a room outline.
+
+    The lattice is aligned to the outline's longest wall and cell-centred (half a
+    spacing from the walls). Among lattices of ``c`` columns by ``r`` rows over the
+    outline's aligned bounding box, the one with the widest smaller spacing that
+    puts at least ``count`` sites inside the outline wins; surplus sites, if any,
+    are dropped farthest from the room's centroid first.
+
+    Returns the luminaires (named ``L0001``...) and a one-line description.
+    """
+    if count < 3:
+        raise InputError(f"--leds {count}: at least 3 luminaires are needed for positioning")
+    theta = principal_angle_rad(outline)
+    rot = np.array([[math.cos(theta), math.sin(theta)], [-math.sin(theta), math.cos(theta)]])
+    local = outline @ rot.T
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    width, height = hi - lo
+    if width <= 0 or height <= 0:
+        raise InputError("room outline has no area; draw it as a closed polyline")
+    polygon = _PolygonPath(local)
+    best = None
+    for cols in range(1, count + 1):
+        sx = width / cols
+        if best is not None and sx <= best[0]:
+            break
+        rows = max(1, math.ceil(count / cols))
+        while True:
+            sy = height / rows
+            spacing = min(sx, sy)
+            if best is not None and spacing <= best[0]:
+                break
+            gx = lo[0] + sx * (np.arange(cols) + 0.5)
+            gy = lo[1] + sy * (np.arange(rows) + 0.5)
+            pts = np.array([(x, y) for y in gy for x in gx])
+            inside = pts[polygon.contains_points(pts)]
+            if len(inside) >= count:
+                best = (spacing, cols, rows, inside)
+                break
+            rows += 1
+            if rows > 4 * count:
+                break
+    if best is None:
+        raise InputError(f"room outline cannot hold {count} luminaires on a lattice")
+    spacing, cols, rows, sites = best
+    centre = local.mean(axis=0)
+    surplus = len(sites) - count
+    if surplus:
+        order = np.lexsort((sites[:, 0], sites[:, 1], np.round(np.hypot(*(sites - centre).T), 9)))
+        sites = sites[np.sort(order[:count])]
+    world = sites @ rot
+    lums = [
+        Luminaire(f"L{k + 1:04d}", float(x), float(y), mount_height_m, radius_m, {"generated": "lattice"})
+        for k, (x, y) in enumerate(world)
+    ]
+    desc = (
+        f"laid out {count} luminaires on a {cols} x {rows} lattice "
+        f"({width / cols:.3f} m x {height / rows:.3f} m spacing, {math.degrees(theta):.1f} deg)"
+    )
+    if surplus:
+        desc += f", {surplus} surplus site(s) left empty"
+    return lums, desc

@@ -1,0 +1,1 @@
+"""Positioning: a receiver's position from the LED ellipses it sees (the paper's method and full perspective)."""

@@ -1,0 +1,157 @@
+"""Locating a receiver on a planned site: identify the luminaires seen, then position.
+
+IDs repeat across a site (the paper's regions, the window scheme), so the receiver
+identifies luminaires as a phone app would: every luminaire whose ID matches is a
+candidate; candidates whose spacing disagrees with the spacing the ellipse sizes
+suggest are dropped; each remaining combination is fitted with the full-perspective
+method (:mod:`planner.positioning.perspective`) and kept only if one pose explains every ellipse
+within ``max_residual_px``. Exactly one place must remain.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import numpy as np
+
+from planner.camera import Camera, disc_dual_conic
+from planner.ellipse import Ellipse, centre_and_shape
+from planner.errors import InputError, PositioningError
+from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
+from planner.positioning.perspective import initial_poses, locate_perspective
+from planner.positioning.paper import distance_weak_perspective, locate_paper
+from planner.defaults import MAX_RESIDUAL_PX
+
+
+SPACING_TOLERANCE = 0.35
+"""Relative error allowed between a luminaire pair's spacing and its weak-perspective estimate."""
+
+METHODS = {"perspective": locate_perspective, "paper": locate_paper}
+
+
+@dataclass(frozen=True)
+class Site:
+    """The planned luminaires: names, centres (N x 3) [m], radii (N,) [m], IDs (N,)."""
+
+    names: list[str]
+    xyz: np.ndarray
+    radii: np.ndarray
+    ids: np.ndarray
+
+    @classmethod
+    def from_plan(cls, doc: dict) -> "Site":
+        lums = doc["luminaires"]
+        return cls([str(e["name"]) for e in lums], np.array([[e["x"], e["y"], e["z"]] for e in lums], float),
+                   np.array([e["radius"] for e in lums], float), np.array([e["id"] for e in lums], np.int64))
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What a receiver reports from one image: its camera, and each LED's decoded ID and ellipse."""
+
+    camera: Camera
+    ids: list[int]
+    ellipses: list[Ellipse]
+
+
+@dataclass(frozen=True)
+class Located:
+    """A position with the luminaires it rests on (``luminaires``: index per LED of the snapshot)."""
+
+    fix: Fix
+    luminaires: np.ndarray
+
+
+def _spacing_ok(pa: np.ndarray, pb: np.ndarray, xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
+    """Candidate pairs whose spacing matches the image's estimate: (len(pa), len(pb)) booleans."""
+    est = np.linalg.norm(pa[:, None] - pb[None], axis=2)
+    true = np.linalg.norm(xa[:, None] - xb[None], axis=2)
+    return np.abs(est - true) <= SPACING_TOLERANCE * est + 0.05
+
+
+def _complete(site: Site, snap: Snapshot, anchor: list[int], combo: tuple, position: np.ndarray,
+              rotation: np.ndarray) -> np.ndarray | None:
+    """Luminaire per LED: the anchor's combo, and for the rest the same-ID luminaire imaged nearest."""
+    out = np.full(len(snap.ids), -1)
+    out[anchor] = combo
+    for k in np.flatnonzero(out < 0):
+        cand = np.flatnonzero(site.ids == snap.ids[k])
+        c, _, ok = centre_and_shape(disc_dual_conic(position, rotation, site.xyz[cand], site.radii[cand], snap.camera))
+        dist = np.where(ok, np.linalg.norm(c - snap.ellipses[k].centre, axis=1), np.inf)
+        best = int(np.argmin(dist))
+        if dist[best] > max(10.0, snap.ellipses[k].major):
+            return None
+        out[k] = cand[best]
+    return out
+
+
+def identify(site: Site, snap: Snapshot, max_residual_px: float = MAX_RESIDUAL_PX) -> Located:
+    """The one set of luminaires whose exact images, at one pose, match the snapshot's ellipses."""
+    cam, n = snap.camera, len(snap.ids)
+    if n < 3:
+        raise PositioningError(f"{n} LED{'s' if n != 1 else ''} in the image: a position needs at least three")
+    cands = [np.flatnonzero(site.ids == i) for i in snap.ids]
+    centres = np.array([e.centre for e in snap.ellipses])
+    shapes = np.array([e.shape for e in snap.ellipses])
+    anchor = anchor_triple(centres)
+    rays = bearings(centres[anchor], cam)
+    focal = float(np.sqrt(cam.fx_px * cam.fy_px))
+    est = [np.array([distance_weak_perspective(snap.ellipses[k], r, focal, cam.cx_px, cam.cy_px)
+                     for r in site.radii[cands[k]]])[:, None] * rays[j] for j, k in enumerate(anchor)]
+    xs = [site.xyz[cands[k]] for k in anchor]
+    ok01, ok02, ok12 = (_spacing_ok(est[a], est[b], xs[a], xs[b]) for a, b in ((0, 1), (0, 2), (1, 2)))
+    found: list[Located] = []
+    best_rejected = np.inf
+    tried: set[tuple] = set()
+    for i, j in zip(*np.nonzero(ok01)):
+        for k in np.flatnonzero(ok02[i] & ok12[j]):
+            combo = (cands[anchor[0]][i], cands[anchor[1]][j], cands[anchor[2]][k])
+            if len(set(combo)) < 3:
+                continue
+            starts = initial_poses(site.xyz[list(combo)], site.radii[list(combo)],
+                                   [snap.ellipses[a] for a in anchor], [0, 1, 2], cam)
+            for position, rotation in starts:
+                lum = _complete(site, snap, anchor, combo, position, rotation)
+                if lum is None or len(set(lum)) < n or tuple(lum) in tried:
+                    continue
+                r = rms(ellipse_residuals(position, rotation, site.xyz[lum], site.radii[lum], centres, shapes, cam))
+                if r > 20 * max_residual_px:
+                    best_rejected = min(best_rejected, r)
+                    continue
+                tried.add(tuple(lum))
+                check_geometry(site.xyz[lum])
+                fix = locate_perspective(site.xyz[lum], site.radii[lum], snap.ellipses, cam)
+                if fix.residual_px > max_residual_px:
+                    best_rejected = min(best_rejected, fix.residual_px)
+                else:
+                    found.append(Located(fix, lum))
+    if not found:
+        detail = f" (best fit {best_rejected:.1f} px RMS, limit {max_residual_px:g} px)" if np.isfinite(best_rejected) else ""
+        raise PositioningError(f"no place on the site explains the image: no luminaires with IDs "
+                               f"{', '.join(map(str, snap.ids))} are seen this way from any pose{detail}; "
+                               "check the decoded IDs and the camera intrinsics")
+    if len(found) > 1:
+        a, b = found[0], found[1]
+        raise PositioningError(
+            f"the image fits two places: luminaires {', '.join(site.names[i] for i in a.luminaires)} "
+            f"at {_fmt(a.fix.position)} and {', '.join(site.names[i] for i in b.luminaires)} at "
+            f"{_fmt(b.fix.position)}; run vlp-verify on the plan, or include more LEDs in the image")
+    return found[0]
+
+
+def _fmt(p: np.ndarray) -> str:
+    return "(" + ", ".join(f"{v:.2f}" for v in p) + ") m"
+
+
+def locate(site: Site, snap: Snapshot, method: str = "perspective", max_residual_px: float = MAX_RESIDUAL_PX) -> Located:
+    """Identify the luminaires in ``snap`` and position the camera with ``method`` (``paper`` or ``perspective``)."""
+    if method not in METHODS:
+        raise InputError(f"unknown positioning method {method!r}; use one of: {', '.join(METHODS)}")
+    for k, i in enumerate(snap.ids):
+        if not np.any(site.ids == i):
+            raise InputError(f"leds[{k}]: ID {i} is not in the plan (IDs there run {site.ids.min()}..{site.ids.max()}); "
+                             "check the decoding, or that this plan is the site's")
+    found = identify(site, snap, max_residual_px)
+    if method == "perspective":
+        return found
+    lum = found.luminaires
+    return Located(locate_paper(site.xyz[lum], site.radii[lum], snap.ellipses, snap.camera), lum)

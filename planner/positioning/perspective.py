@@ -1,0 +1,102 @@
+"""The full-perspective method: the camera pose whose exact LED images match the ellipses seen.
+
+No approximation of the LED image: the pose (position and orientation) starts from
+P3P on the ellipse centres (OpenCV's solver, Ding et al. 2023) and from the paper's
+weak-perspective position (P3P loses a root when two roots nearly coincide), the
+ellipse sizes and shapes pick the best start, and a least-squares refinement
+over every LED seen matches each predicted exact disc image (its dual conic,
+:func:`planner.camera.disc_dual_conic`) to the fitted ellipse: centre and shape
+matrix, five residuals per LED in pixels. ``docs/positioning.md`` compares this with
+the paper's weak-perspective method.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from planner.camera import Camera
+from planner.ellipse import Ellipse
+from planner.errors import PositioningError
+from planner.positioning.fix import (BAD_PX, Fix, anchor_triple, check_geometry, ellipse_residuals, observed, orientation_at,
+                  residuals_batch, rms)
+from planner.positioning.paper import distance_weak_perspective, trilaterate_least_squares, trilaterate_same_height
+
+def p3p_poses(xyz3: np.ndarray, centres3_px: np.ndarray, camera: Camera) -> list[tuple[np.ndarray, np.ndarray]]:
+    """P3P's solutions as (camera centre [m], camera-to-site rotation), camera below the LEDs."""
+    n, rvecs, tvecs = cv2.solveP3P(np.ascontiguousarray(xyz3, dtype=np.float64),
+                                   np.ascontiguousarray(centres3_px, dtype=np.float64),
+                                   camera.intrinsics, None, flags=cv2.SOLVEPNP_P3P)
+    out = []
+    for rvec, tvec in zip(rvecs[:n], tvecs[:n]):
+        r_wc = cv2.Rodrigues(rvec)[0]  # site -> camera
+        position = -r_wc.T @ tvec.reshape(3)
+        if np.all(np.isfinite(position)) and position[2] < xyz3[:, 2].min():
+            out.append((position, r_wc.T))
+    return out
+
+
+def weak_perspective_pose(xyz3: np.ndarray, radii3: np.ndarray, ellipses3: list[Ellipse],
+                          camera: Camera) -> tuple[np.ndarray, np.ndarray] | None:
+    """The paper's position (Eq. 1-14) on three LEDs with the orientation fitted to it: a start for
+    :func:`refine` where P3P's roots are lost (two close roots turn complex under small centre errors)."""
+    focal = float(np.sqrt(camera.fx_px * camera.fy_px))
+    d = np.array([distance_weak_perspective(e, r, focal, camera.cx_px, camera.cy_px) for e, r in zip(ellipses3, radii3)])
+    try:
+        if np.ptp(xyz3[:, 2]) < 1e-9:
+            position = trilaterate_same_height(xyz3, d)
+        else:
+            position = trilaterate_least_squares(xyz3, d)[0]
+    except PositioningError:
+        return None
+    if position[2] >= xyz3[:, 2].min():
+        return None
+    return position, orientation_at(position, xyz3, np.array([e.centre for e in ellipses3]), camera)
+
+
+def initial_poses(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], anchor: list[int],
+                  camera: Camera) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Starting poses: P3P's roots on the anchor LEDs' centres, and the weak-perspective pose."""
+    centres = np.array([ellipses[k].centre for k in anchor])
+    starts = p3p_poses(xyz[anchor], centres, camera)
+    weak = weak_perspective_pose(xyz[anchor], radii[anchor], [ellipses[k] for k in anchor], camera)
+    return starts + ([weak] if weak is not None else [])
+
+
+def refine(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
+           centres: np.ndarray, shapes: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
+    """Levenberg-Marquardt over the six pose parameters on :func:`ellipse_residuals`.
+
+    The Jacobian is taken by forward differences in one batched evaluation.
+    """
+    args = (rotation, xyz, radii, centres, shapes, camera)
+    steps = np.diag(np.r_[np.full(3, 1e-7), np.full(3, 1e-7 * max(1.0, float(np.abs(position).max())))])
+
+    def fun(x):
+        return residuals_batch(x[None], *args)[0]
+
+    def jac(x):
+        r = residuals_batch(np.vstack([x, x + steps]), *args)
+        return ((r[1:] - r[0]) / np.diag(steps)[:, None]).T
+
+    fit = least_squares(fun, np.concatenate([np.zeros(3), position]), jac=jac, method="lm", x_scale="jac")
+    rot = rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
+    return fit.x[3:], rot, rms(fit.fun)
+
+
+def locate_perspective(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], camera: Camera) -> Fix:
+    """Camera pose from three or more identified LEDs (``xyz`` N x 3 [m], ``radii`` [m]) and their ellipses."""
+    xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
+    check_geometry(xyz)
+    centres, shapes = observed(ellipses)
+    best = None
+    for position, rotation in initial_poses(xyz, radii, ellipses, anchor_triple(centres), camera):
+        r = rms(ellipse_residuals(position, rotation, xyz, radii, centres, shapes, camera))
+        if best is None or r < best[2]:
+            best = (position, rotation, r)
+    if best is None or best[2] >= BAD_PX:
+        raise PositioningError("no camera pose below the luminaires explains the LED images")
+    position, rotation, r = refine(best[0], best[1], xyz, radii, centres, shapes, camera)
+    return Fix(position, rotation, r, "perspective", np.arange(len(xyz)))

@@ -1,0 +1,154 @@
+"""The site report's content: summary figures, the ID bill and the installers' checklist in walking order.
+
+Pure computation on a plan document (``plan.yaml`` as loaded) and, once
+drivers have been flashed, the as-built journal's entries; the figures are
+drawn by :mod:`planner.report.figures` and the files written by
+:mod:`planner.report.files`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+ROW_TOLERANCE = 0.5
+"""Luminaires whose y differs from a row's first by less than this share of the pitch walk in that row."""
+
+
+def walking_order(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A serpentine route: rows by increasing y, walked left to right, then right to left, and so on.
+
+    A row gathers the luminaires whose y lies within :data:`ROW_TOLERANCE` times
+    the median nearest-neighbour distance of the row's first (lowest) one, so a
+    slightly staggered or surveyed row stays one row. Returns the luminaire
+    indices in walking order and each stop's row number.
+    """
+    n = len(xy)
+    if n == 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    if n > 1:
+        from scipy.spatial import cKDTree
+
+        d, _ = cKDTree(xy).query(xy, k=2)
+        pitch = float(np.median(d[:, 1]))
+    else:
+        pitch = 1.0
+    tol = ROW_TOLERANCE * pitch
+    by_y = np.lexsort((xy[:, 0], xy[:, 1]))
+    order, row, start = [], [], xy[by_y[0], 1]
+    for i in by_y:
+        if xy[i, 1] - start > tol:
+            order.append(row)
+            row, start = [], xy[i, 1]
+        row.append(i)
+    order.append(row)
+    route, row_of = [], []
+    for r, members in enumerate(order):
+        members = sorted(members, key=lambda i: xy[i, 0], reverse=bool(r % 2))
+        route += members
+        row_of += [r] * len(members)
+    return np.array(route, int), np.array(row_of, int)
+
+
+@dataclass(frozen=True)
+class BillLine:
+    """One ID of the bill: how many drivers carry it, and which luminaires."""
+
+    id: int
+    parity: str
+    count: int
+    luminaires: tuple[str, ...]
+
+
+def id_bill(doc: dict) -> list[BillLine]:
+    """The ID bill: every ID used, with its class, count and luminaires (in walking order)."""
+    lums = doc["luminaires"]
+    route, _ = walking_order(np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2))
+    by_id: dict[int, list] = {}
+    for i in route:
+        by_id.setdefault(int(lums[i]["id"]), []).append(lums[i])
+    return [BillLine(k, "/".join(sorted({e["parity"] for e in v})), len(v), tuple(e["name"] for e in v))
+            for k, v in sorted(by_id.items())]
+
+
+@dataclass(frozen=True)
+class Stop:
+    """One stop of the installers' checklist."""
+
+    number: int
+    row: int
+    name: str
+    x_m: float
+    y_m: float
+    id: int
+    parity: str
+    region: int
+    firmware: str
+    status: str
+    detail: str
+
+
+STATUS_OK = ("flashed", "current", "verified")
+"""Journal statuses meaning the driver holds this plan's image, verified."""
+
+
+def _status(entry: dict | None) -> tuple[str, str]:
+    if entry is None:
+        return "not flashed", ""
+    detail = ", ".join(s for s in (entry.get("driver_serial") and f"driver {entry['driver_serial']}",
+                                   entry.get("time")) if s)
+    if entry.get("status") in STATUS_OK and entry.get("verified"):
+        return "verified", detail
+    return "failed", "; ".join(s for s in (entry.get("message"), detail) if s)
+
+
+def checklist(doc: dict, journal: dict[str, dict] | None = None) -> list[Stop]:
+    """The installers' checklist: every luminaire in walking order, with its flashing status from ``journal``."""
+    from planner.firmware.render import file_name
+
+    lums = doc["luminaires"]
+    xy = np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2)
+    route, rows = walking_order(xy)
+    journal = journal or {}
+    stops = []
+    for k, (i, r) in enumerate(zip(route, rows), 1):
+        e = lums[i]
+        status, detail = _status(journal.get(e["name"]))
+        stops.append(Stop(k, int(r) + 1, e["name"], float(e["x"]), float(e["y"]), int(e["id"]), e["parity"],
+                          int(e["region"]), f"firmware/{file_name(e['name'])}/", status, detail))
+    return stops
+
+
+def summary(doc: dict, stops: list[Stop]) -> list[tuple[str, str]]:
+    """The report's headline figures as (label, value) pairs, from the plan document."""
+    code, mod, ver, acc = doc["code"], doc.get("modulation"), doc.get("verification"), doc.get("accuracy")
+    regions = len({e["region"] for e in doc["luminaires"]})
+    rows = [
+        ("layout", f"{doc['source']['file']} ({len(doc['luminaires'])} luminaires, unit {doc['source']['unit']})"),
+        ("scheme", f"{doc['scheme']}: {code['bits']} bits per ID (naive {code['naive_bits']}, lower bound "
+                   f"{code['lower_bound_bits']}), IDs 1..{code['max_id']}, {regions} regions"),
+    ]
+    if ver:
+        rows.append(("verification", f"{100 * ver['coverage']:.1f} % of {ver['poses']} sampled poses decodable, "
+                                     f"{ver['ambiguous']} ambiguous"))
+    else:
+        rows.append(("verification", "not verified (--no-verify)"))
+    if acc and acc.get("located"):
+        rows.append(("expected error", f"{acc['method']} method: median {length_text(acc['median_m'])}, 90 % "
+                                       f"{length_text(acc['p90_m'])} ({acc['located']} of {acc['poses']} poses located)"))
+    elif acc:
+        rows.append(("expected error", f"{acc['method']} method: none of {acc['poses']} sampled poses located"))
+    if mod:
+        rows.append(("modulation", f"{mod['line_code']}, {mod['chip_rate_hz']:g} chips/s, {mod['frame_chips']} chips "
+                                   f"per frame ({1e3 * mod['frame_period_s']:.3f} ms), "
+                                   f"{mod['frames_in_smallest_image']:.1f} frames in the smallest LED image"))
+    done = sum(s.status == "verified" for s in stops)
+    failed = sum(s.status == "failed" for s in stops)
+    rows.append(("flashing", f"{done} of {len(stops)} drivers verified" + (f", {failed} failed" if failed else "")))
+    return rows
+
+
+def length_text(metres: float) -> str:
+    """A length for people: millimetres below 1 cm, else centimetres."""
+    return f"{metres * 1e3:.2f} mm" if metres < 0.01 else f"{metres * 1e2:.1f} cm"

@@ -1,0 +1,110 @@
+"""Write the site report: ``site-report.html`` (self-contained) and ``site-report.pdf``.
+
+Both are made from the plan document, the maps ``vlp-plan`` drew beside it
+(``map.png``, ``coverage.png``, ``error.png``) and, once drivers have been
+flashed, the as-built journal. Each file is written to a temporary name and
+renamed into place, so a reader never sees half a report.
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from planner.report.content import checklist, id_bill, summary, walking_order
+from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
+
+HTML_NAME = "site-report.html"
+PDF_NAME = "site-report.pdf"
+
+MAPS = (
+    ("map", "map.png", "Site map", "IDs on the luminaires; odd class filled, even hollow; regions shaded and labelled."),
+    ("coverage", "coverage.png", "Coverage",
+     "Share of sampled camera poses (height, tilt, heading) whose view decodes to one place; dark is bad."),
+    ("error", "error.png", "Expected positioning error",
+     "Simulated fixes over the site with pixel noise only; survey and lens errors come on top."),
+)
+"""The maps the report embeds: (anchor, file in the plan's directory, heading, caption)."""
+
+
+def _atomic_write(path: Path, write) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _render_html(context: dict) -> str:
+    from importlib.resources import files
+
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(files("planner.report") / "templates")),
+                             autoescape=True, undefined=jinja2.StrictUndefined, keep_trailing_newline=True)
+    return env.get_template("site-report.html.j2").render(**context)
+
+
+def write_report(doc: dict, plan_hash: str, plan_dir: str | Path, outdir: str | Path,
+                 journal: dict[str, dict] | None = None) -> list[Path]:
+    """Write the HTML and PDF site report of the plan ``doc`` into ``outdir``; return their paths.
+
+    ``plan_dir`` holds the maps drawn with the plan (missing ones are named in
+    their place); ``journal`` maps luminaire names to as-built entries. Names in
+    scripts the figures' font lacks (CJK) print as boxes in the PNGs and PDF
+    without a warning each time; the HTML shows them as they are.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .* missing from font")
+        return _write_report(doc, plan_hash, Path(plan_dir), Path(outdir), journal)
+
+
+def _write_report(doc: dict, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None) -> list[Path]:
+    from planner import __version__
+
+    lums = doc["luminaires"]
+    route, _ = walking_order(np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2))
+    stops = checklist(doc, journal)
+    bill = id_bill(doc)
+    head = summary(doc, stops)
+    title = f"VLP site report: {doc.get('source', {}).get('file', plan_dir.name)}"
+    figures = []
+    for anchor, file, name, caption in MAPS:
+        png = plan_dir / file
+        figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
+                        f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify)."))
+    if doc.get("modulation"):
+        figures.append(("timing", "Frame timing", timing_diagram(doc, timing_examples(doc, route)),
+                        "What each driver sends, chip by chip: its frame repeats; the receiver reads at least one "
+                        "whole frame within the smallest LED image.", ""))
+    figures.append(("route", "Walking route", route_figure(doc, route),
+                    "The order of the checklist below: rows by increasing y, alternating direction.", ""))
+    times = [e["time"] for e in (journal or {}).values() if e.get("time")]
+    journal_note = f"flashing status as of {max(times)}" if times else "no drivers flashed yet"
+    generator = doc.get("generator", f"vlp-plan {__version__}")
+    html = _render_html({
+        "title": title, "generator": generator, "plan_hash": plan_hash, "journal_note": journal_note,
+        "summary": head, "stops": stops, "bill": bill,
+        "contents": [("summary", "Summary")] + [(a, n) for a, n, *_ in figures]
+                    + [("bill", "ID bill"), ("checklist", "Checklist")],
+        "figures": [{"anchor": a, "name": n, "caption": c, "missing": m,
+                     "data": base64.b64encode(png).decode("ascii") if png else None}
+                    for a, n, png, c, m in figures],
+    })
+    outdir.mkdir(parents=True, exist_ok=True)
+    html_path, pdf_path = outdir / HTML_NAME, outdir / PDF_NAME
+    _atomic_write(html_path, lambda tmp: Path(tmp).write_text(html, encoding="utf-8"))
+    sections = [(n, png, m) for _, n, png, _, m in figures]
+    _atomic_write(pdf_path, lambda tmp: write_pdf(
+        tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
+        bill_lines(bill), checklist_lines(stops)))
+    return [html_path, pdf_path]

@@ -1,0 +1,135 @@
+"""Render the frame a rolling-shutter camera captures of a planned ceiling: LED stripes on a dark ceiling.
+
+Every luminaire in front of the camera is drawn as its exact perspective image
+(the disc's conic, :func:`planner.camera.disc_dual_conic`), antialiased by its
+signed distance to the rim. Image row ``v`` is exposed from ``v * row_time_s``
+for ``exposure_s``; a pixel of LED ``k`` gets the mean of that LED's drive over
+its row's exposure, the drive being the LED's frame (``plan.yaml``'s chips)
+repeated at the site's chip rate from a random start phase. Then optics blur
+(Gaussian), shot and read noise, and 8-bit quantisation. Pixel ``(v, u)`` has
+its centre at image coordinates ``(u, v)``, as in the observation model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from planner.camera import Camera, disc_dual_conic, project_discs_at
+from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
+from planner.ellipse import centre_and_shape
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """How the receiver's camera turns light into 8-bit pixels.
+
+    Attributes
+    ----------
+    exposure_s : float
+        Exposure of one row [s] (a phone's shortest settings are 1/10,000-1/100,000 s).
+    blur_px : float
+        Standard deviation of the optics' Gaussian blur [px].
+    dark_dn : float
+        Level of the unlit ceiling [DN].
+    led_dn : float
+        Level of a lit LED, before its own brightness factor [DN].
+    led_spread : float
+        Each LED's brightness is ``led_dn`` times a factor drawn uniformly from ``1 +- led_spread``.
+    off_level : float
+        Light of an "off" chip as a share of "on" (0: the driver switches fully off).
+    read_noise_dn : float
+        Standard deviation of the read noise [DN].
+    shot_dn : float
+        Shot noise: its variance is ``shot_dn`` times the signal [DN].
+    """
+
+    exposure_s: float = SENSOR_EXPOSURE_S
+    blur_px: float = SENSOR_BLUR_PX
+    dark_dn: float = 6.0
+    led_dn: float = 210.0
+    led_spread: float = 0.15
+    off_level: float = 0.0
+    read_noise_dn: float = SENSOR_READ_NOISE_DN
+    shot_dn: float = 0.5
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A rendered frame and what is true about it."""
+
+    image: np.ndarray  # (height, width) uint8
+    drawn: np.ndarray  # indices of the luminaires drawn (some perhaps cut by the border)
+    phase_chips: np.ndarray  # start phase of every luminaire's frame [chips], (N,)
+
+
+def exposure_means(chips: str, phase_chips: float, row_start_s: np.ndarray, exposure_s: float,
+                   chip_rate_hz: float, off_level: float = 0.0) -> np.ndarray:
+    """Mean drive (0 off .. 1 on) of an LED over each row's exposure, its frame repeating from ``phase_chips``.
+
+    Exact for the piecewise-constant drive: the integral of the repeated frame
+    between the exposure's start and end, divided by its length.
+    """
+    level = np.array([1.0 if c == "1" else off_level for c in chips])
+    cum = np.concatenate([[0.0], np.cumsum(level)])
+    n_chips = len(level)
+
+    def integral(x: np.ndarray) -> np.ndarray:  # of the drive from chip 0 to x [chips]
+        whole = np.floor(x)
+        k = whole.astype(np.int64)
+        return (k // n_chips) * cum[-1] + cum[k % n_chips] + (x - whole) * level[k % n_chips]
+
+    start = row_start_s * chip_rate_hz + phase_chips
+    span = exposure_s * chip_rate_hz
+    return (integral(start + span) - integral(start)) / span
+
+
+def _coverage(u: np.ndarray, v: np.ndarray, centre: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Share of each pixel inside the ellipse ``(p - c)^T q (p - c) <= 1``, from the signed distance to its rim."""
+    du, dv = u[None, :] - centre[0], v[:, None] - centre[1]
+    gu, gv = q[0, 0] * du + q[0, 1] * dv, q[1, 0] * du + q[1, 1] * dv
+    d = du * gu + dv * gv
+    root = np.sqrt(np.maximum(d, 1e-12))
+    signed = (root - 1.0) * root / np.maximum(np.hypot(gu, gv), 1e-12)  # [px], negative inside
+    return np.clip(0.5 - signed, 0.0, 1.0)
+
+
+def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate_hz: float, camera: Camera,
+                 position: np.ndarray, rotation: np.ndarray, sensor: Sensor = Sensor(),
+                 rng: np.random.Generator | None = None) -> Frame:
+    """The frame the camera at ``position`` [m] with camera-to-site ``rotation`` captures.
+
+    ``chips`` is every luminaire's frame ('0'/'1' per chip), ``chip_rate_hz`` the site's
+    chip rate; ``rng`` draws the phases, brightness factors and noise (seeded for tests).
+    """
+    rng = rng or np.random.default_rng()
+    height, width = camera.height_px, camera.width_px
+    n = len(xyz)
+    phase = rng.uniform(0.0, [len(c) for c in chips]) if n else np.zeros(0)
+    gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
+    img = np.full((height, width), sensor.dark_dn, np.float32)
+    in_front = project_discs_at(position[None], rotation[None], xyz[None], radii[None], camera)["in_front"][0]
+    centres, shapes, ok = centre_and_shape(disc_dual_conic(position, rotation, xyz, radii, camera))
+    drawn = []
+    margin = 2.0 + 3.0 * sensor.blur_px
+    for k in np.flatnonzero(in_front & ok):
+        m2 = shapes[k] @ shapes[k]
+        half = np.sqrt(np.diag(m2))
+        u0, v0 = np.floor(centres[k] - half - margin).astype(int)
+        u1, v1 = np.ceil(centres[k] + half + margin).astype(int)
+        u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, width - 1), min(v1, height - 1)
+        if u0 > u1 or v0 > v1:
+            continue
+        rows = np.arange(v0, v1 + 1)
+        cover = _coverage(np.arange(u0, u1 + 1, dtype=float), rows.astype(float), centres[k], np.linalg.inv(m2))
+        drive = exposure_means(chips[k], phase[k], rows * camera.row_time_s, sensor.exposure_s, chip_rate_hz,
+                               sensor.off_level)
+        img[v0:v1 + 1, u0:u1 + 1] += (sensor.led_dn * gain[k]) * cover * drive[:, None].astype(np.float32)
+        drawn.append(k)
+    if sensor.blur_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), sensor.blur_px)
+    sigma = np.sqrt(sensor.shot_dn * img + sensor.read_noise_dn**2)
+    img += sigma * rng.standard_normal(img.shape, dtype=np.float32)
+    return Frame(np.clip(np.rint(img), 0, 255).astype(np.uint8), np.array(drawn, int), phase)

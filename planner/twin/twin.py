@@ -1,0 +1,180 @@
+"""The receiver twin: render what the phone sees at a pose, decode it, locate, and grade every stage.
+
+A pose's result names the first stage that failed:
+
+``blobs``     fewer than three of the LEDs wholly in view were found as blobs with an ellipse;
+``ids``       fewer than three IDs were read, or a misread ID spoilt identification;
+``identify``  the read LEDs were matched to no luminaires, to two places, or to the wrong ones;
+``position``  identified right, but the position is off by more than the tolerance.
+
+Poses are drawn as the verification draws them (:func:`planner.verify.windows.sample_poses`)
+and kept only where the plan is decodable (three whole, non-collinear LEDs whose
+window is unique): the twin checks the pixels, not the plan's coverage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.camera import Camera, Poses, disc_dual_conic, project_discs_at
+from planner.twin.render import Frame, Sensor, render_frame
+from planner.ellipse import centre_and_shape
+from planner.errors import InputError, PlannerError
+from planner.positioning.locate import Site, locate
+from planner.positioning.observation import seen_leds
+from planner.twin.receiver import Blob, Modulation, decode_frame, read_blobs, snapshot
+from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
+
+STAGES = ("blobs", "ids", "identify", "position")
+
+MATCH_SHARE = 0.25
+"""A blob belongs to an LED if its ellipse centre lies within this share of the LED image's minor axis."""
+
+
+@dataclass(frozen=True)
+class Twin:
+    """A plan as the twin needs it: the site, each driver's frame, the receiver's knowledge, camera and sensor."""
+
+    site: Site
+    chips: list[str]
+    modulation: Modulation
+    camera: Camera
+    sensor: Sensor = Sensor()
+    outline: list | None = None
+
+    @classmethod
+    def from_plan(cls, doc: dict, sensor: Sensor = Sensor()) -> "Twin":
+        if not doc.get("modulation") or any("frame" not in e for e in doc["luminaires"]):
+            raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
+                             "make it again with this vlp-plan")
+        return cls(Site.from_plan(doc), [e["frame"]["chips"] for e in doc["luminaires"]],
+                   Modulation.from_plan(doc), Camera.from_dict(doc.get("camera") or {}), sensor, doc.get("outline"))
+
+
+@dataclass(frozen=True)
+class PoseResult:
+    """How one pose went, stage by stage."""
+
+    position: np.ndarray
+    angles_deg: tuple[float, float, float]  # tilt, azimuth, roll
+    seen: int  # LEDs wholly in view
+    found: int  # of those, found as blobs with an ellipse
+    read: int  # of those, ID read right
+    misread: int  # blobs (of any LED) whose ID was read wrong
+    error_m: float  # position error (NaN without a fix)
+    stage: str  # "" if located within tolerance, else the first stage that failed
+    detail: str = ""
+    blobs: list[Blob] = field(default_factory=list, repr=False, compare=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.stage == ""
+
+
+def _truth(twin: Twin, position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The LEDs in front of the camera: indices, image centres [px], minor semi-axes [px]; and those wholly in view."""
+    site = twin.site
+    centres, shapes, ok = centre_and_shape(disc_dual_conic(position, rotation, site.xyz, site.radii, twin.camera))
+    front = project_discs_at(position[None], rotation[None], site.xyz[None], site.radii[None], twin.camera)["in_front"][0]
+    index = np.flatnonzero(ok & front)
+    whole = seen_leds(position, rotation, site.xyz, site.radii, twin.camera)
+    return index, centres[index], np.linalg.eigvalsh(shapes[index])[:, 0], whole
+
+
+def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, blobs: list[Blob],
+          tolerance_m: float = TOLERANCE_M) -> PoseResult:
+    """Grade a decoded frame against the truth of its pose.
+
+    Blobs are matched to any LED in front of the camera (a receiver may read an LED
+    whose disc reaches into the sensor's outer half pixel, which the verification
+    counts as cut); ``seen`` and ``found`` count the LEDs wholly in view.
+    """
+    index, centres, minor, whole = _truth(twin, position, rotation)
+    owner = {}  # blob number -> luminaire index
+    for b, blob in enumerate(blobs):
+        if blob.ellipse is None or not len(index):
+            continue
+        off = np.hypot(*(centres - blob.ellipse.centre).T)
+        k = int(np.argmin(off))
+        if off[k] <= MATCH_SHARE * 2 * minor[k]:
+            owner[b] = int(index[k])
+    found = len(set(owner.values()) & set(whole.tolist()))
+    wrong = [(b, owner[b]) for b in owner if blobs[b].id is not None and blobs[b].id != twin.site.ids[owner[b]]]
+    read = sum(1 for b in owner if owner[b] in set(whole.tolist()) and blobs[b].id == twin.site.ids[owner[b]])
+    base = dict(position=position, angles_deg=tuple(angles_deg), seen=len(whole), found=found, read=read,
+                misread=len(wrong), blobs=blobs)
+    misread = "; ".join(f"{twin.site.names[i]} (ID {twin.site.ids[i]}) read as {blobs[b].id}" for b, i in wrong)
+    if found < 3:
+        return PoseResult(**base, error_m=np.nan, stage="blobs", detail=f"{found} of {len(whole)} LEDs found")
+    snap = snapshot(blobs, twin.camera)
+    if len(snap.ids) < 3:
+        problems = sorted({b.problem for b in blobs if b.id is None and b.problem})
+        return PoseResult(**base, error_m=np.nan, stage="ids", detail=f"{len(snap.ids)} IDs read ({'; '.join(problems)})")
+    try:
+        located = locate(twin.site, snap)
+    except PlannerError as exc:
+        return PoseResult(**base, error_m=np.nan, stage="ids" if wrong else "identify",
+                          detail=f"misread {misread}" if wrong else str(exc))
+    truth = [owner.get(b, -1) for b in read_blobs(blobs, twin.camera)]
+    error = float(np.linalg.norm(located.fix.position - position))
+    if list(located.luminaires) != truth:
+        return PoseResult(**base, error_m=error, stage="ids" if wrong else "identify",
+                          detail=f"misread {misread}" if wrong else "identified the wrong luminaires")
+    if error > tolerance_m:
+        return PoseResult(**base, error_m=error, stage="position", detail=f"off by {100 * error:.1f} cm")
+    return PoseResult(**base, error_m=error, stage="")
+
+
+def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, rng: np.random.Generator,
+             tolerance_m: float = TOLERANCE_M) -> tuple[PoseResult, Frame]:
+    """Render the pose's frame, decode it, locate, and grade the result."""
+    frame = render_frame(twin.site.xyz, twin.site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera,
+                         position, rotation, twin.sensor, rng)
+    blobs = decode_frame(frame.image, twin.camera, twin.modulation, blur_px=twin.sensor.blur_px,
+                         exposure_s=twin.sensor.exposure_s)
+    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frame
+
+
+def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
+    """``count`` poses, drawn as the verification draws them, where the plan is decodable."""
+    from planner.verify.verify import DECODABLE, classify, observe_poses
+    from planner.verify.windows import area_m2, sample_poses, working_area
+
+    xyz = twin.site.xyz
+    area = working_area(xyz[:, :2], twin.outline)
+    per_m2 = 3.0 * count / max(area_m2(area), 1e-6)
+    for _ in range(6):
+        poses = sample_poses(area, twin.camera, per_m2, seed)
+        obs = observe_poses(poses, xyz, twin.site.radii, twin.camera, per_m2=per_m2, seed=seed)
+        status = classify(obs, twin.site.ids).status
+        good = np.flatnonzero(status == DECODABLE)
+        if len(good) >= count:
+            pick = np.sort(np.random.default_rng(seed).choice(good, count, replace=False))
+            return poses.subset(pick)
+        per_m2 *= 2 * count / max(len(good), 1)
+    raise PlannerError(f"the plan is decodable at only {len(good)} of {len(poses)} sampled poses; "
+                       f"ask for fewer than {count} poses")
+
+
+def summary(results: list[PoseResult]) -> dict:
+    """Success rate, failures per stage, each stage's own rate, and the position errors."""
+    n = len(results)
+    seen = sum(r.seen for r in results)
+    found = sum(r.found for r in results)
+    errors = np.array([r.error_m for r in results if r.ok])
+    return {
+        "poses": n,
+        "located": sum(r.ok for r in results),
+        "success_rate": sum(r.ok for r in results) / n if n else 0.0,
+        "failed_by_stage": {s: sum(r.stage == s for r in results) for s in STAGES},
+        "leds_in_view": seen,
+        "blobs_found": found,
+        "ids_read": sum(r.read for r in results),
+        "ids_misread": sum(r.misread for r in results),
+        "blob_rate": found / seen if seen else 0.0,
+        "id_rate": sum(r.read for r in results) / found if found else 0.0,
+        "error_m": ({"median": float(np.median(errors)), "p90": float(np.percentile(errors, 90)),
+                     "max": float(errors.max())} if len(errors) else None),
+    }

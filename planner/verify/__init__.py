@@ -1,0 +1,1 @@
+"""The verification stage: windows, the proved window set, and whether the plan decodes everywhere."""

@@ -1,0 +1,427 @@
+"""The proved window set: every triple that a pose of the envelope could take as its window.
+
+A window is the three wholly seen LEDs whose projected centres lie nearest the
+image centre (the paper's rule). Take a pose, its window ``T``, the angle ``θ3``
+between the optical axis and the farthest member, and the level set ``E(θ)``: the
+ceiling points within angle ``θ`` of the axis, an ellipse (a plane section of the
+cone of those rays). LEDs whose centres lie within ``α' = α_in - δ`` of the axis
+are wholly seen (``α_in``: the cone inscribed in the image, ``δ``: the largest
+angular radius of a disc, at the nearest ceiling distance). Two cases:
+
+* **A** (``θ3 <= α'``): no other LED lies inside ``E(θ3)``, which holds ``T``.
+  ``E(θ3)``'s radius of curvature is at most ``R`` (its ``a^2/b`` at the largest
+  tilt, angle and distance), so it holds the ``R``-spindle (the lens cut by the two
+  ``R``-circles through both points) of any two members (Blaschke: a convex body
+  whose curvature is at least ``1/R`` is the intersection of the ``R``-discs that
+  contain it). So no other LED lies in the spindle of any two members.
+* **B** (``θ3 > α'``): ``E(α')``, which holds the disc ``D(q, ρ)`` of radius
+  ``ρ = h_min sin α'`` about the axis point ``q``, holds no other LED; and every LED
+  in ``conv(T ∪ D(q, ρ))`` with a disc no larger than the members' is wholly seen and
+  nearer (the hull's image is the hull of in-view images; ``E(θ3)`` is convex), so
+  that hull holds none. Every such hull holds a triangle on any side ``ab`` of ``T``
+  with its apex ``ρ`` from the line ``ab`` on ``q``'s side (scale the disc's far
+  point towards the side's middle); so an LED deep in such triangles, for every apex
+  position, excludes ``q`` beyond that side. ``q`` inside ``T`` is searched in
+  cells (branch and bound) down to :data:`MIN_CELL_M`.
+
+A triple is excluded only when both cases are, so what is left is a superset of
+every window. Installed luminaires lie up to ``d`` from the drawing: an LED counts
+against a triple only when it is deeper than ``2 d`` inside the region, and the
+spindles are taken over every centre within ``R + d`` of both (drawn) ends. Triples
+whose installed shape is certainly flatter than the receiver accepts are dropped
+(:func:`planner.verify.window_set.may_be_decoded`).
+Pairs are tested first (an LED may be the unknown third member, so two are needed).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from planner.camera import Camera
+from planner.errors import PlanningError
+from planner.codes.rivals import triples_of_pairs
+from planner.verify.window_set import SAME_HEIGHT_M, empty_triangles, may_be_decoded
+from planner.verify.windows import twice_signed_area
+
+MIN_CELL_M = 0.005
+"""Smallest cell of axis points searched inside a triangle [m]: a triple with an unexcluded cell is kept."""
+
+NEAR = 24
+"""LEDs nearest a pair's middle or a triangle's centroid that are tested against it (more only exclude more)."""
+
+PAIR_BUDGET = 20_000
+"""Most pairs within reach that the proof examines; a larger site is not proved (it is sampled)."""
+
+TRIANGLE_BUDGET = 5_000
+"""Most candidate triangles (after the cheap tests) that the proof examines and the planner designs against."""
+
+_CHUNK = 20_000
+
+
+class NotProvable(PlanningError):
+    """The envelope or the site is outside what the proof covers (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """What the proof assumes, in SI units: one ceiling plane, a pinhole camera, the pose envelope."""
+
+    ceiling_m: float
+    near_m: float
+    far_m: float
+    tilt_rad: float
+    inscribed_rad: float
+    corner_rad: float
+    disc_rad: float
+    install_m: float
+
+    @property
+    def sure_rad(self) -> float:
+        """``α'``: LEDs whose centre lies within this angle of the axis are wholly seen."""
+        return self.inscribed_rad - self.disc_rad
+
+    @property
+    def disc_m(self) -> float:
+        """``ρ``: the ceiling disc about the axis point that lies within ``α'`` at every pose [m]."""
+        return self.near_m * math.sin(self.sure_rad)
+
+    @property
+    def reach_m(self) -> float:
+        """Farthest two ceiling points in view at one pose (the corner cone's section) [m]."""
+        return self.far_m * (math.tan(self.tilt_rad + self.corner_rad) - math.tan(self.tilt_rad - self.corner_rad))
+
+    @property
+    def axis_reach_m(self) -> float:
+        """Farthest a ceiling point in view lies from the axis point (the far end of the corner cone's section) [m]."""
+        return self.far_m * (math.tan(self.tilt_rad + self.corner_rad) - math.tan(self.tilt_rad))
+
+    @property
+    def curvature_m(self) -> float:
+        """``R``: the largest radius of curvature of ``E(θ)`` for ``θ <= α'`` [m] (``a^2/b`` of the section)."""
+        t, th = self.tilt_rad, self.sure_rad
+        a = 0.5 * self.far_m * (math.tan(t + th) - math.tan(t - th))
+        e = math.sin(t) / math.cos(th)
+        return a / math.sqrt(1.0 - e * e)
+
+    def summary(self) -> dict:
+        return {"ceiling_m": round(self.ceiling_m, 4), "ceiling_distance_m": [round(self.near_m, 4), round(self.far_m, 4)],
+                "max_tilt_deg": round(math.degrees(self.tilt_rad), 4),
+                "inscribed_deg": round(math.degrees(self.inscribed_rad), 4),
+                "corner_deg": round(math.degrees(self.corner_rad), 4),
+                "disc_deg": round(math.degrees(self.disc_rad), 4), "install_tolerance_m": self.install_m,
+                "spindle_radius_m": round(self.curvature_m, 4), "axis_disc_m": round(self.disc_m, 4),
+                "reach_m": round(self.reach_m, 4), "axis_reach_m": round(self.axis_reach_m, 4)}
+
+
+def envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> Envelope:
+    """The proof's envelope for this site and camera; :class:`NotProvable` says why there is none."""
+    z = xyz[:, 2]
+    if np.ptp(z) >= SAME_HEIGHT_M:
+        raise NotProvable(f"the luminaires are not on one ceiling plane (heights {z.min():.3f}-{z.max():.3f} m)")
+    if abs(camera.fx_px - camera.fy_px) > 1e-9 * camera.fx_px:
+        raise NotProvable("the camera's pixels are not square (fx != fy): the nearest-to-centre rule is not by angle")
+    ceiling = float(np.median(z))
+    near, far = ceiling - camera.max_height_m, ceiling - camera.min_height_m
+    r = float(np.max(radii))
+    if near <= r:
+        raise NotProvable(f"the receiver may come within {near:.2f} m of the ceiling, inside an LED's radius")
+    f = camera.fx_px
+    half = min(camera.cx_px, camera.width_px - camera.cx_px, camera.cy_px, camera.height_px - camera.cy_px)
+    corner = math.atan(math.hypot(max(camera.cx_px, camera.width_px - camera.cx_px),
+                                  max(camera.cy_px, camera.height_px - camera.cy_px)) / f)
+    if camera.max_tilt_rad + corner >= math.pi / 2:
+        raise NotProvable(f"tilt {math.degrees(camera.max_tilt_rad):.1f} deg + corner angle "
+                          f"{math.degrees(corner):.1f} deg reaches the horizon")
+    env = Envelope(ceiling, near, far, camera.max_tilt_rad, math.atan(half / f), corner, math.asin(r / near),
+                   float(install_tolerance_m))
+    if env.sure_rad <= 0:
+        raise NotProvable("an LED's disc can fill the cone inscribed in the image")
+    return env
+
+
+# --- case A: spindles ---------------------------------------------------------------------------
+
+
+def _in_spindle(a: np.ndarray, b: np.ndarray, x: np.ndarray, radius_m: float, d: float) -> np.ndarray:
+    """Whether ``x`` (..., 2) lies in the installed ``R``-spindle of ``a, b`` (..., 2) for every displacement <= d.
+
+    True when every centre ``c`` within ``R + d`` of both ends has ``|c - x| < R - d``:
+    the farthest such ``c`` is a corner of that lens or the far point of one of its arcs.
+    """
+    rho = radius_m + d
+    ab = b - a
+    length = np.linalg.norm(ab, axis=-1)
+    half2 = rho * rho - 0.25 * length * length
+    ok = half2 > 0
+    n = np.stack([-ab[..., 1], ab[..., 0]], -1) / np.maximum(length, 1e-12)[..., None]
+    mid = 0.5 * (a + b)
+    h = np.sqrt(np.maximum(half2, 0.0))[..., None]
+    far = np.maximum(np.linalg.norm(mid + h * n - x, axis=-1), np.linalg.norm(mid - h * n - x, axis=-1))
+    for p, o in ((a, b), (b, a)):
+        away = p - x
+        c = p + rho * away / np.maximum(np.linalg.norm(away, axis=-1), 1e-12)[..., None]
+        on_arc = np.linalg.norm(c - o, axis=-1) <= rho
+        far = np.where(on_arc, np.maximum(far, rho + np.linalg.norm(away, axis=-1)), far)
+    return ok & (far < radius_m - d)
+
+
+def _spindle_count(a, b, xs, valid, env: Envelope) -> np.ndarray:
+    """LEDs among ``xs`` (P, K, 2) in the spindle of each pair; pairs longer than ``2 (R + d)`` count as full."""
+    inside = _in_spindle(a[:, None], b[:, None], xs, env.curvature_m, env.install_m) & valid
+    count = inside.sum(axis=1)
+    too_long = np.linalg.norm(b - a, axis=1) > 2 * (env.curvature_m + env.install_m)
+    return np.where(too_long, np.iinfo(np.int64).max // 2, count)
+
+
+# --- case B, axis point beyond a side: apex intervals ----------------------------------------------
+
+
+def _apex_cover(a, b, xs, valid, env: Envelope, side: float) -> np.ndarray:
+    """Fewest LEDs deep (> 2 d) in ``triangle(a, b, apex)`` over apex positions ``ρ`` from line ``ab`` on ``side``.
+
+    ``a, b`` (P, 2), ``xs`` (P, K, 2). An LED ``x`` at ``(s, h)`` in the frame of ``ab``
+    (``s`` along, ``h`` towards ``side``) is deep for apexes ``s' in [L - φ(L - s), φ(s)]``,
+    ``φ(u) = ρ (u h - m sqrt(u^2 + h^2 - m^2)) / (h^2 - m^2)``; the apex lies between the
+    side's middle and the axis point, which is within the axis reach of both ends: over
+    ``[L - reach, reach]``. Returns the minimum cover over that range (P,).
+    """
+    rho, m = env.disc_m, 2.0 * env.install_m + 1e-9
+    ab = b - a
+    length = np.linalg.norm(ab, axis=1)
+    u = ab / np.maximum(length, 1e-12)[:, None]
+    rel = xs - a[:, None]
+    s = rel[..., 0] * u[:, None, 0] + rel[..., 1] * u[:, None, 1]
+    h = side * (rel[..., 1] * u[:, None, 0] - rel[..., 0] * u[:, None, 1])
+    use = valid & (h > m) & (h < rho)
+    hh = np.where(use, h, 2 * m + 1.0)
+    den = hh * hh - m * m
+
+    def phi(w):
+        return rho * (w * hh - m * np.sqrt(w * w + den)) / den
+
+    lo_lim, hi_lim = length - env.axis_reach_m, np.full(len(a), env.axis_reach_m)  # q within reach of a and b
+    lo = np.maximum(length[:, None] - phi(length[:, None] - s), lo_lim[:, None])
+    hi = np.minimum(phi(s), hi_lim[:, None])
+    use &= lo < hi
+    lo, hi = np.where(use, lo, np.inf), np.where(use, hi, np.inf)
+    cover = _min_cover(lo, hi, lo_lim, hi_lim)
+    return np.where(lo_lim > hi_lim, np.iinfo(np.int64).max // 2, cover)
+
+
+def _min_cover(lo: np.ndarray, hi: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """Fewest closed intervals ``[lo, hi]`` (P, K; inf = none) covering a point of ``[start, stop]`` (P,)."""
+    p, k = lo.shape
+    ev = np.concatenate([lo, hi], axis=1)
+    step = np.concatenate([np.where(np.isfinite(lo), 1, 0), np.where(np.isfinite(hi), -1, 0)], axis=1)
+    order = np.argsort(ev, axis=1, kind="stable")
+    ev, step = np.take_along_axis(ev, order, 1), np.take_along_axis(step, order, 1)
+    count = np.cumsum(step, axis=1)  # cover of the open piece after each event
+    nxt = np.concatenate([ev[:, 1:], np.full((p, 1), np.inf)], axis=1)
+    piece_lo, piece_hi = np.maximum(ev, start[:, None]), np.minimum(nxt, stop[:, None])
+    real = (nxt > ev) & (piece_hi > piece_lo)
+    best = np.where(real, count, np.iinfo(np.int64).max).min(axis=1)
+    first = np.where(np.isfinite(ev[:, 0]), ev[:, 0], np.inf)
+    before = first > start  # the stretch before the first interval is covered by none
+    return np.where(before, 0, best)
+
+
+# --- case B, axis point inside the triangle: cells --------------------------------------------------
+
+
+def _hull_depth(p: np.ndarray, q: np.ndarray, rho: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Depth of ``x`` (N, K, 2) in ``conv(p ∪ D(q, rho))``, ``p`` (N, 3, 2), ``q`` (N, 2), ``rho`` (N,); < 0 outside.
+
+    The depth is ``min_u max(u·p_i, u·q + rho) - u·x`` over unit ``u``; the minimum lies
+    where two pieces cross or at one piece's own minimum, so those directions suffice.
+    """
+    ang = []
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        e = p[:, j] - p[:, i]
+        base = np.arctan2(e[:, 1], e[:, 0])
+        ang += [base + np.pi / 2, base - np.pi / 2]
+    for i in range(3):
+        w = p[:, i] - q
+        dist = np.linalg.norm(w, axis=1)
+        turn = np.arccos(np.clip(rho / np.maximum(dist, 1e-12), -1.0, 1.0))
+        base = np.arctan2(w[:, 1], w[:, 0])
+        ang += [base + turn, base - turn]
+    ang_nk = [np.broadcast_to(a[:, None], x.shape[:2]) for a in ang]
+    dq = x - q[:, None]
+    ang_nk.append(np.arctan2(dq[..., 1], dq[..., 0]))
+    for i in range(3):
+        dp = p[:, i][:, None] - x
+        ang_nk.append(np.arctan2(-dp[..., 1], -dp[..., 0]))
+    th = np.stack(ang_nk, axis=-1)  # (N, K, 16)
+    u = np.stack([np.cos(th), np.sin(th)], axis=-1)  # (N, K, 16, 2)
+    support = np.einsum("nkcd,nid->nkci", u, p).max(axis=-1)
+    support = np.maximum(support, np.einsum("nkcd,nd->nkc", u, q) + rho[:, None, None])
+    return (support - np.einsum("nkcd,nkd->nkc", u, x)).min(axis=-1)
+
+
+def _inside_alive(p: np.ndarray, xs: np.ndarray, valid: np.ndarray, env: Envelope) -> np.ndarray:
+    """Whether some axis point inside each triangle ``p`` (T, 3, 2) is not excluded (T,), by cells.
+
+    A cell (centre ``q0``, half-side ``s``) is excluded when an LED is deep in
+    ``conv(T ∪ D(q0, ρ - s sqrt 2))``, which every axis point of the cell's hull holds;
+    a triangle is kept as soon as one cell centre is not excluded with the full ``ρ``,
+    or a cell reaches :data:`MIN_CELL_M` unexcluded.
+    """
+    lo, hi = p.min(axis=1), p.max(axis=1)
+    half = 0.5 * (hi - lo).max(axis=1) + 1e-9
+    tri = np.arange(len(p))
+    centre = 0.5 * (lo + hi)
+    alive = np.zeros(len(p), dtype=bool)
+    m = 2.0 * env.install_m + 1e-9
+    off = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)
+
+    def excluded(t, q, rho):
+        out = np.zeros(len(t), dtype=bool)
+        for c in range(0, len(t), 4000):
+            sl = slice(c, c + 4000)
+            depth = _hull_depth(p[t[sl]], q[sl], rho[sl], xs[t[sl]])
+            out[sl] = ((depth > m) & valid[t[sl]]).any(axis=1)
+        return out
+
+    while len(tri):
+        pt = p[tri]
+        sign = np.where(twice_signed_area(pt) >= 0, 1.0, -1.0)
+        meets = np.ones(len(tri), dtype=bool)  # cells that miss the triangle are left to the sides' test
+        for i in range(3):
+            e = pt[:, (i + 1) % 3] - pt[:, i]
+            dist = sign * (e[:, 0] * (centre[:, 1] - pt[:, i, 1]) - e[:, 1] * (centre[:, 0] - pt[:, i, 0]))
+            meets &= dist >= -half * math.sqrt(2) * np.linalg.norm(e, axis=1)
+        tri, centre, half = tri[meets], centre[meets], half[meets]
+        free = ~excluded(tri, centre, np.full(len(tri), env.disc_m))
+        alive[tri[free]] = True
+        rho = env.disc_m - half * math.sqrt(2)
+        gone = np.zeros(len(tri), dtype=bool)
+        test = (rho > 0) & ~alive[tri]
+        gone[test] = excluded(tri[test], centre[test], rho[test])
+        alive[tri[~gone & (half <= MIN_CELL_M)]] = True
+        keep = ~gone & (half > MIN_CELL_M) & ~alive[tri]
+        tri, centre, half = tri[keep], centre[keep], half[keep] / 2
+        centre = (centre[:, None, :] + off[None] * half[:, None, None]).reshape(-1, 2)
+        tri, half = np.repeat(tri, 4), np.repeat(half, 4)
+    return alive
+
+
+# --- putting it together ----------------------------------------------------------------------------
+
+
+def _near(tree: cKDTree, points: np.ndarray, k: int) -> np.ndarray:
+    _, idx = tree.query(points, k=k)
+    return idx.reshape(len(points), k)
+
+
+def _strip(tree: cKDTree, a: np.ndarray, b: np.ndarray, step_m: float, n: int) -> np.ndarray:
+    """Distinct LEDs near the segments ``a b`` (P, 2): the 3 nearest to each of points spaced along it."""
+    length = np.linalg.norm(b - a, axis=1)
+    steps = max(2, int(np.ceil(length.max() / step_m)) + 1)
+    t = np.linspace(0.0, 1.0, steps)
+    pts = a[:, None] + t[None, :, None] * (b - a)[:, None]
+    k = min(3, n)
+    idx = _near(tree, pts.reshape(-1, 2), k).reshape(len(a), steps * k)
+    idx = np.sort(idx, axis=1)
+    dup = np.zeros_like(idx, dtype=bool)
+    dup[:, 1:] = idx[:, 1:] == idx[:, :-1]
+    return np.where(dup, -1, idx)
+
+
+def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = PAIR_BUDGET) -> np.ndarray:
+    """Pairs ``i < j`` (M x 2) that can be two members of a window at some pose of the envelope;
+    :class:`NotProvable` when more than ``budget`` pairs lie within reach."""
+    n = len(xy)
+    tree = cKDTree(xy)
+    pairs = tree.query_pairs(env.reach_m + 2 * env.install_m, output_type="ndarray").astype(np.int64)
+    if len(pairs) > budget:
+        raise NotProvable(f"{len(pairs):,} pairs of luminaires within the camera's reach of "
+                          f"{env.reach_m:.2f} m, over the proof's budget of {budget:,}")
+    if len(pairs) == 0 or n < 4:
+        return pairs.reshape(-1, 2)
+    small = radii <= radii.min() + 1e-12  # only the smallest discs surely count in case B at pair level
+    keep = np.zeros(len(pairs), dtype=bool)
+    for start in range(0, len(pairs), _CHUNK):
+        pr = pairs[start:start + _CHUNK]
+        a, b = xy[pr[:, 0]], xy[pr[:, 1]]
+        near = _near(tree, 0.5 * (a + b), min(NEAR, n))
+        valid = (near != pr[:, :1]) & (near != pr[:, 1:])
+        case_a = _spindle_count(a, b, xy[near], valid, env) < 2
+        strip = _strip(tree, a, b, env.disc_m, n)
+        sv = (strip >= 0) & (strip != pr[:, :1]) & (strip != pr[:, 1:])
+        sv &= small[np.maximum(strip, 0)]
+        xs = xy[np.maximum(strip, 0)]
+        case_b = (_apex_cover(a, b, xs, sv, env, 1.0) < 2) | (_apex_cover(a, b, xs, sv, env, -1.0) < 2)
+        keep[start:start + len(pr)] = case_a | case_b
+    return pairs[keep]
+
+
+def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = TRIANGLE_BUDGET,
+                     pair_budget: int = PAIR_BUDGET) -> np.ndarray:
+    """Every triple (T x 3, ``i < j < k``) that may be a window at some pose of the envelope;
+    :class:`NotProvable` when more than ``budget`` candidates pass the cheap tests."""
+    xy = xyz[:, :2]
+    n = len(xy)
+    if n < 3:
+        return np.empty((0, 3), dtype=np.int64)
+    cand = triples_of_pairs(possible_pairs(xy, radii, env, pair_budget), n)
+    cand = cand[may_be_decoded(xy[cand], env.install_m)]
+    cand = cand[empty_triangles(cand, xyz, radii, env.install_m)]
+    if len(cand) > budget:
+        raise NotProvable(f"{len(cand):,} candidate triangles, over the proof's budget of {budget:,}")
+    if n == 3 or len(cand) == 0:
+        return cand
+    tree = cKDTree(xy)
+    keep = np.zeros(len(cand), dtype=bool)
+    for start in range(0, len(cand), _CHUNK):
+        tr = cand[start:start + _CHUNK]
+        p = xy[tr]
+        near = _near(tree, p.mean(axis=1), min(NEAR, n))
+        member = (near[:, :, None] == tr[:, None, :]).any(axis=2)
+        valid = ~member
+        case_a = np.ones(len(tr), dtype=bool)
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            case_a &= _spindle_count(p[:, i], p[:, j], xy[near], valid, env) == 0
+        small = radii[near] <= radii[tr].min(axis=1)[:, None]
+        out_side = np.where(twice_signed_area(p) >= 0, -1.0, 1.0)  # left of i->j is inside for a counter-clockwise triangle
+        beyond = np.zeros(len(tr), dtype=bool)  # some axis point beyond a side is not excluded
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            strip = _strip(tree, p[:, i], p[:, j], env.disc_m, n)
+            sv = (strip >= 0) & ~(strip[:, :, None] == tr[:, None, :]).any(axis=2)
+            sv &= radii[np.maximum(strip, 0)] <= radii[tr].min(axis=1)[:, None]
+            xs = xy[np.maximum(strip, 0)]
+            for side in (1.0, -1.0):
+                on = out_side == side
+                if on.any():
+                    beyond[on] |= _apex_cover(p[on, i], p[on, j], xs[on], sv[on], env, side) < 1
+        case_b = beyond.copy()
+        undecided = ~case_a & ~beyond
+        if undecided.any():
+            case_b[undecided] = _inside_alive(p[undecided], xy[near[undecided]], (valid & small)[undecided], env)
+        keep[start:start + len(tr)] = case_a | case_b
+    return cand[keep]
+
+
+@dataclass(frozen=True)
+class Proof:
+    """The outcome of :func:`prove_window_set`: the proved window set, or why there is none."""
+
+    triangles: np.ndarray | None
+    reason: str
+    envelope: dict | None
+
+    @property
+    def complete(self) -> bool:
+        return self.triangles is not None
+
+
+def prove_window_set(xyz: np.ndarray, radii: np.ndarray, camera: Camera, install_tolerance_m: float) -> Proof:
+    """Every triple that may be a window at some pose, or the reason this site and camera are not proved."""
+    try:
+        env = envelope(camera, xyz, radii, install_tolerance_m)
+        return Proof(possible_windows(xyz, radii, env), "", env.summary())
+    except NotProvable as exc:
+        return Proof(None, str(exc), None)

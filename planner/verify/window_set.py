@@ -1,0 +1,86 @@
+"""The window set: every triple of the site that passes a proved necessary condition for a window.
+
+**Empty-triangle rule.** If three LEDs ``a, b, c`` are a window at some pose, no other
+LED of the same height and no larger disc lies in their closed triangle. Proof: such
+an LED's disc lies in the convex hull of the three discs, whose image (a convex set:
+the hull is in front of the camera) lies in the image, so it is wholly in view; and
+the ceiling points whose image is within a distance of the image centre fill an
+ellipse (a plane section of the cone of those rays, bounded while the largest tilt
+plus the corner angle stays under 90 deg), so by strict convexity that LED is nearer
+the image centre than the farthest of ``a, b, c``: the paper's rule would have taken
+it. With luminaires installed up to ``d`` from the drawing, an edge line moves by at
+most ``d`` at its ends and the LED by ``d``, so only LEDs deeper than ``2 d`` inside
+every edge of the drawn triangle are sure to be inside the installed one.
+
+The rule needs every ray in view to meet the ceiling (largest tilt plus corner angle
+under 90 deg; :func:`planner.verify.proof.envelope` checks it) and says nothing about
+long triangles: here the set is bounded by a side length from a dense pose sample, so
+it is complete only up to that bound. :mod:`planner.verify.proof` bounds it for every
+pose instead (docs/verification.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from planner.codes.rivals import site_triples
+from planner.verify.windows import MIN_FLATNESS, twice_signed_area
+
+NEIGHBOURS = 32
+"""LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
+
+
+SAME_HEIGHT_M = 1e-3
+"""LEDs whose heights differ by less than this count as one ceiling plane [m]."""
+
+
+def empty_triangles(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> np.ndarray:
+    """Which ``triples`` (T x 3 luminaire indices) hold no other LED that forbids them as a window."""
+    triples = np.asarray(triples, dtype=np.int64).reshape(-1, 3)
+    if len(triples) == 0 or len(xyz) <= 3:
+        return np.ones(len(triples), dtype=bool)
+    xy = xyz[:, :2]
+    k = min(NEIGHBOURS + 3, len(xy))
+    _, near = cKDTree(xy).query(xy[triples].mean(axis=1), k=k)
+    near = near.reshape(len(triples), k)
+    p = xy[triples]  # (T, 3, 2)
+    q = xy[near]  # (T, k, 2)
+    cross = twice_signed_area(p)
+    orient = np.where(cross >= 0, 1.0, -1.0)[:, None]
+    margin = 2.0 * install_tolerance_m  # 0: the closed triangle (an LED on an edge is nearer too)
+    inside = np.ones(near.shape, dtype=bool)
+    for s in range(3):  # signed distance from each edge line, positive towards the triangle
+        a, b = p[:, s], p[:, (s + 1) % 3]
+        edge = b - a
+        length = np.linalg.norm(edge, axis=1)[:, None]
+        dist = orient * (edge[:, None, 0] * (q[..., 1] - a[:, None, 1]) - edge[:, None, 1] * (q[..., 0] - a[:, None, 0]))
+        inside &= dist >= margin * np.maximum(length, 1e-12)
+    member = (near[:, :, None] == triples[:, None, :]).any(axis=2)
+    coplanar = (np.abs(xyz[near, 2] - xyz[triples, 2].min(axis=1)[:, None]) < SAME_HEIGHT_M) \
+        & (np.ptp(xyz[triples, 2], axis=1) < SAME_HEIGHT_M)[:, None]
+    small = radii[near] <= radii[triples].min(axis=1)[:, None]
+    flat = np.abs(cross) <= 1e-12 * np.max(np.linalg.norm(p - p[:, [1, 2, 0]], axis=2), axis=1) ** 2
+    return ~(inside & ~member & coplanar & small).any(axis=1) | flat  # three in a row: no claim
+
+
+def may_be_decoded(p: np.ndarray, install_tolerance_m: float) -> np.ndarray:
+    """Triangles ``p`` (T, 3, 2) [m] whose installed shape may reach the receiver's flatness limit.
+
+    Each corner moves at most ``d``: twice the area grows by at most ``4 d L + 4 d^2`` and
+    the longest side ``L`` shrinks by at most ``2 d``; a triangle below :data:`MIN_FLATNESS`
+    even then is never decoded (the receiver calls it collinear) and cannot be a window.
+    """
+    d = install_tolerance_m
+    e = p[:, [1, 2, 0]] - p
+    longest = np.linalg.norm(e, axis=2).max(axis=1)
+    twice_area = np.abs(twice_signed_area(p))
+    return (twice_area + 4 * d * longest + 4 * d * d) / np.maximum(longest - 2 * d, 1e-12) ** 2 >= MIN_FLATNESS
+
+
+def window_superset(xyz: np.ndarray, radii: np.ndarray, max_side_m: float, install_tolerance_m: float) -> np.ndarray:
+    """Every triple with sides at most ``max_side_m`` that the empty-triangle rule allows (T x 3),
+    less those whose installed shape is certainly too flat to decode."""
+    cand = site_triples(xyz[:, :2], max_side_m)
+    cand = cand[empty_triangles(cand, xyz, radii, install_tolerance_m)]
+    return cand[may_be_decoded(xyz[cand][:, :, :2], install_tolerance_m)]

@@ -1,0 +1,195 @@
+"""Windows: the three LEDs a camera uses at a pose, for many poses at once.
+
+A window is, by the paper's rule (section 3), the three LEDs wholly inside the
+image that are closest to its centre. This module samples poses over a working
+area, finds each pose's window (vectorised over poses), and canonicalises the
+windows found: counter-clockwise order and a congruence class of their triangle,
+as the receiver sees them (it reads IDs in cyclic order and measures the
+triangle, but does not know its yaw).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.path import Path as PolygonPath
+from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.stats import qmc
+
+from planner.camera import Camera, Poses, project_discs
+from planner.defaults import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
+
+CANDIDATES = 24
+"""LEDs examined per pose: those nearest the point where the optical axis meets the ceiling."""
+
+MIN_FLATNESS = 0.1
+"""A triangle whose height is under this share of its longest side counts as collinear."""
+
+
+_BATCH = 20000
+_SOBOL_CHUNK_LOG2 = 16
+
+
+def working_area(xy: np.ndarray, outline) -> np.ndarray:
+    """The floor area poses are sampled in: the room outline, else the luminaires' convex hull."""
+    if outline is not None and len(outline) >= 3:
+        return np.asarray(outline, dtype=float)
+    try:
+        return xy[ConvexHull(xy).vertices]
+    except QhullError:  # collinear: a thin strip around them
+        lo, hi = xy.min(axis=0) - 0.25, xy.max(axis=0) + 0.25
+        return np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]])
+
+
+def area_m2(polygon: np.ndarray) -> float:
+    """Area of a simple polygon (N x 2) [m] [m2] (shoelace formula)."""
+    x, y = polygon[:, 0], polygon[:, 1]
+    return float(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+
+
+def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2, seed: int = 0) -> Poses:
+    """Quasi-random poses over ``area`` (polygon [m]): position, height, tilt, azimuth, roll.
+
+    A scrambled Sobol sequence over (x, y, height, tilt, azimuth, roll); tilt is
+    uniform in [0, max_tilt] (more weight on strong tilts than a uniform cap, so
+    the hard cases are well sampled); points outside the area are dropped.
+    """
+    polygon = PolygonPath(area)
+    lo, hi = area.min(axis=0), area.max(axis=0)
+    wanted = max(1, int(round(per_m2 * max(area_m2(area), 1e-6))))
+    sobol = qmc.Sobol(d=6, scramble=True, seed=seed)
+    chunks, have = [], 0
+    while have < wanted:  # draw in power-of-two chunks (Sobol balance), keep those inside the area
+        u = sobol.random_base2(_SOBOL_CHUNK_LOG2) if sobol.num_generated == 0 else sobol.random(2**_SOBOL_CHUNK_LOG2)
+        u = u[polygon.contains_points(lo + u[:, :2] * (hi - lo))]
+        chunks.append(u[: wanted - have])
+        have += len(chunks[-1])
+    u = np.concatenate(chunks)
+    xy = lo + u[:, :2] * (hi - lo)
+    height = camera.min_height_m + u[:, 2] * (camera.max_height_m - camera.min_height_m)
+    return Poses(np.column_stack([xy, height]), u[:, 3] * camera.max_tilt_rad, u[:, 4] * 2 * math.pi,
+                 u[:, 5] * 2 * math.pi)
+
+
+@dataclass(frozen=True)
+class PoseWindows:
+    """The window of every pose.
+
+    Attributes
+    ----------
+    triples : numpy.ndarray of int, shape (P, 3)
+        Luminaire indices of each pose's window, in increasing index order; -1 where
+        fewer than three LEDs are seen.
+    seen : numpy.ndarray of int, shape (P,)
+        LEDs wholly inside the image, among those examined (at most ``CANDIDATES``).
+    collinear : numpy.ndarray of bool, shape (P,)
+        The window's three LEDs are (nearly) on one line: no fix.
+    """
+
+    triples: np.ndarray
+    seen: np.ndarray
+    collinear: np.ndarray
+
+    @property
+    def covered(self) -> np.ndarray:
+        """Poses with three non-collinear LEDs seen."""
+        return (self.triples[:, 0] >= 0) & ~self.collinear
+
+
+def twice_signed_area(p: np.ndarray) -> np.ndarray:
+    """Twice the signed plan area of triangles ``p`` (T, 3, >= 2) [m^2]: positive when counter-clockwise."""
+    return (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+
+
+def flatness(p: np.ndarray) -> np.ndarray:
+    """Triangle height over longest side, for triangles ``p`` of shape (..., 3, 3) [m]."""
+    e = np.stack([p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 1, :], p[..., 0, :] - p[..., 2, :]], -2)
+    longest2 = np.max(np.sum(e**2, axis=-1), axis=-1)
+    twice_area = np.linalg.norm(np.cross(e[..., 0, :], -e[..., 2, :]), axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(longest2 > 0, twice_area / longest2, 0.0)
+
+
+def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
+    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre."""
+    n = len(xyz)
+    k = min(CANDIDATES, n)
+    tree = cKDTree(xyz[:, :2])
+    ceiling = float(np.median(xyz[:, 2]))
+    triples = np.full((len(poses), 3), -1, dtype=np.int64)
+    seen = np.zeros(len(poses), dtype=np.int64)
+    for start in range(0, len(poses), _BATCH):
+        part = poses.subset(slice(start, start + _BATCH))
+        axis = part.rotation[:, :, 2]
+        reach = (ceiling - part.position[:, 2]) / np.maximum(axis[:, 2], 1e-6)
+        aim = part.position[:, :2] + reach[:, None] * axis[:, :2]
+        _, cand = tree.query(aim, k=k)
+        cand = cand.reshape(len(part), k)
+        img = project_discs(part, xyz[cand], radii[cand], camera)
+        dist2 = (img["u"] - camera.cx_px) ** 2 + (img["v"] - camera.cy_px) ** 2
+        dist2 = np.where(img["inside"], dist2, np.inf)
+        order = np.argsort(dist2, axis=1, kind="stable")[:, :3]
+        nearest = np.take_along_axis(cand, order, axis=1)
+        ok = np.isfinite(np.take_along_axis(dist2, order, axis=1)).all(axis=1)
+        seen[start:start + len(part)] = img["inside"].sum(axis=1)
+        triples[start:start + len(part)][ok] = np.sort(nearest[ok], axis=1)
+    collinear = np.zeros(len(poses), dtype=bool)
+    has = triples[:, 0] >= 0
+    collinear[has] = flatness(xyz[triples[has]]) < MIN_FLATNESS
+    return PoseWindows(triples, seen, collinear)
+
+
+@dataclass(frozen=True)
+class WindowSet:
+    """Distinct non-collinear windows, canonicalised for keys.
+
+    Attributes
+    ----------
+    windows : numpy.ndarray of int, shape (M, 3)
+        Luminaire indices, counter-clockwise in plan, starting at the shape's canonical vertex.
+    shape : numpy.ndarray of int, shape (M,)
+        Congruence class of the window's triangle.
+    symmetric : numpy.ndarray of bool, shape (S,)
+        Shapes with three equal sides (any vertex can start).
+    """
+
+    windows: np.ndarray
+    shape: np.ndarray
+    symmetric: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.windows)
+
+
+def _length_classes(lengths: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """Class of each length: sorted lengths split where neighbours differ by more than the tolerance."""
+    order = np.argsort(lengths, kind="stable")
+    cls_sorted = np.concatenate([[0], np.cumsum(np.diff(lengths[order]) > tolerance_m)])
+    out = np.empty(len(lengths), dtype=np.int64)
+    out[order] = cls_sorted
+    return out
+
+
+def canonical_windows(triples: np.ndarray, xyz: np.ndarray, tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> WindowSet:
+    """Canonical form of the distinct windows among ``triples`` (rows of 3 indices, -1 rows ignored)."""
+    t = np.unique(np.sort(triples[triples[:, 0] >= 0], axis=1), axis=0)
+    if len(t) == 0:
+        return WindowSet(np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int64), np.zeros(0, dtype=bool))
+    p = xyz[t]
+    t = np.where((twice_signed_area(p) < 0)[:, None], t[:, [0, 2, 1]], t)  # counter-clockwise in plan
+    p = xyz[t]
+    sides = np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)  # side k joins vertex k and k+1
+    cls = _length_classes(sides.ravel(), tolerance_m).reshape(-1, 3)
+    rotations = np.stack([np.roll(cls, -r, axis=1) for r in range(3)], axis=1)  # (M, 3 rot, 3)
+    code = (rotations[..., 0] * (cls.max() + 1) + rotations[..., 1]) * (cls.max() + 1) + rotations[..., 2]
+    best = np.argmin(code, axis=1)
+    t = np.stack([np.roll(row, -r) for row, r in zip(t, best)]) if len(t) else t
+    shape_code = code[np.arange(len(code)), best]
+    shapes, shape = np.unique(shape_code, return_inverse=True)
+    canon = rotations[np.arange(len(code)), best]
+    symmetric = np.zeros(len(shapes), dtype=bool)
+    equal = (canon[:, 0] == canon[:, 1]) & (canon[:, 1] == canon[:, 2])
+    symmetric[shape[equal]] = True
+    return WindowSet(t.astype(np.int64), shape.astype(np.int64), symmetric)
