@@ -14,9 +14,9 @@ import shutil
 import subprocess
 import sys
 import time
+from importlib import metadata
 
-COMMANDS = ("vlp-plan", "vlp-verify", "vlp-locate", "vlp-accuracy", "vlp-efficiency", "vlp-flash", "vlp-report",
-            "vlp-twin", "vlp-driver-sim")
+COMMANDS = tuple(sorted(ep.name for ep in metadata.distribution("vlp-plan").entry_points if ep.group == "console_scripts"))
 
 
 def best_of(argv: list[str], runs: int) -> float:

@@ -8,16 +8,14 @@ drawing reproducibly. ``python tests/dxf_factory.py`` rewrites the bundled examp
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import ezdxf
 import numpy as np
 from ezdxf.document import Drawing
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.layout.dxf_annotate import dxf_bytes, fixed_metadata  # noqa: E402
+from planner.layout.dxf_annotate import dxf_bytes, fixed_metadata
 
 INSUNITS = {"in": 1, "ft": 2, "mm": 4, "cm": 5, "m": 6}
 DLX_LAYER = "DLX_BLD1_FL0_LUM 1"

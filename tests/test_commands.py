@@ -5,11 +5,29 @@ import shutil
 import subprocess
 import sys
 import time
+from importlib import metadata
+from pathlib import Path
 
 import pytest
 
-COMMANDS = ("vlp-plan", "vlp-verify", "vlp-locate", "vlp-accuracy", "vlp-efficiency", "vlp-flash", "vlp-report",
-            "vlp-twin", "vlp-driver-sim")
+import planner
+
+ROOT = Path(__file__).resolve().parents[1]
+COMMANDS = tuple(sorted(ep.name for ep in metadata.distribution("vlp-plan").entry_points if ep.group == "console_scripts"))
+
+
+def test_the_suite_tests_the_installed_package_and_its_nine_scripts():
+    """A plain ``pip install .`` must be what the tests import (``python -m pytest`` would put
+    the source tree first on the path); a developer's ``pip install -e .`` is the source tree."""
+    installs = [json.loads(d.read_text("direct_url.json") or "{}") for d in metadata.distributions(name="vlp-plan")]
+    imported = Path(planner.__file__).resolve()
+    if any(i.get("dir_info", {}).get("editable") for i in installs):
+        assert imported == ROOT / "planner" / "__init__.py"
+    else:
+        assert ROOT not in imported.parents, f"the tests import the source tree ({imported}), not the installed package"
+    assert len(COMMANDS) == 9 and all(name.startswith("vlp-") for name in COMMANDS)
+    scripts = {Path(shutil.which(name) or "").parent for name in COMMANDS}
+    assert scripts == {Path(sys.executable).parent}, f"the scripts on PATH are not this environment's: {scripts}"
 
 
 def _best_of(argv: list[str], runs: int = 3) -> tuple[float, subprocess.CompletedProcess]:

@@ -21,10 +21,13 @@ import time
 import traceback
 import tty
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
 from planner.errors import PlannerError, UsageError
-from planner.flash.sim.bus import Faults, SimBus, make_bus
+
+if TYPE_CHECKING:  # the simulator loads when the command runs, not when it parses (--help at once)
+    from planner.flash.sim.bus import SimBus
 
 PROG = "vlp-driver-sim"
 
@@ -94,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the simulator; raises :class:`PlannerError` on bad arguments."""
     args = _parser().parse_args(argv)
     key = read_key(args.key_file)
+    from planner.flash.sim.bus import Faults, make_bus
+
     faults = Faults.parse(args.faults)
     made_dir = args.flash_dir is None
     flash_dir = Path(tempfile.mkdtemp(prefix="vlp-driver-sim-")) if made_dir else args.flash_dir
