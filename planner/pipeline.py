@@ -15,22 +15,21 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
-from planner.codes.assignment import assign_paper
-from planner.frame import line_code
-from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
-from planner.codes.check_bits import check_code
 from planner.camera import Camera
+from planner.codes.assignment import assign_paper
+from planner.codes.check_bits import check_code
+from planner.codes.schemes import assign_unique, assign_window
+from planner.defaults import INSTALL_TOLERANCE_M, SCHEMES
 from planner.errors import InputError, UsageError
+from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
+from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
-from planner.verify.verify import check_window_set, classify, observe, side_bound
+from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.verify.proof import prove_window_set
-from planner.defaults import INSTALL_TOLERANCE_M
-from planner.codes.schemes import assign_unique, assign_window
+from planner.verify.verify import check_window_set, classify, observe, side_bound
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
-from planner.defaults import SCHEMES
 
 LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
 
@@ -228,9 +227,8 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
 
             write_firmware(document, plan_hash(text), stage, template_dir=firmware.template_dir,
                            mcu_clock_hz=firmware.mcu_clock_hz, image_version=firmware.image_version)
-        from planner.layout.dxf_annotate import write_annotated_dxf
-
         from planner import __version__
+        from planner.layout.dxf_annotate import write_annotated_dxf
 
         is_dxf = source.suffix.lower() == ".dxf"
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),

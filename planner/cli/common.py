@@ -15,7 +15,7 @@ import traceback
 from typing import TYPE_CHECKING
 
 from planner import __version__
-from planner.defaults import (CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, POSES_PER_M2)
+from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, POSES_PER_M2
 from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)

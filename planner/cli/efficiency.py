@@ -86,9 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     missing = [str(p) for p in paths.values() if not p.is_file()]
     if missing and args.layouts:
         raise UsageError(f"{missing[0]}: no such file; give --layouts DIR with grid-32/256/512.yaml")
-    from planner.studies.efficiency import curve, lattice_layout, site_figures, table_row
     from planner.pipeline import read_layout
     from planner.plan import load_plan
+    from planner.studies.efficiency import curve, lattice_layout, site_figures, table_row
 
     built = bool(missing)  # an installed copy without the repository: the same grids, built in code
     site = site_figures(load_plan(args.plan), args.plan) if args.plan else None

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from planner import __version__
 from planner.cli import common as cli
-from planner.defaults import (DRIVER_MAX_HZ, ERROR_POSES_PER_M2, LINE_CODE_NAMES, LOCATE_METHODS, SCHEMES, UNIT_TO_M)
+from planner.defaults import DRIVER_MAX_HZ, ERROR_POSES_PER_M2, LINE_CODE_NAMES, LOCATE_METHODS, SCHEMES, UNIT_TO_M
 from planner.errors import ExitCode, UsageError
 
 LOW_COVERAGE = 0.5
@@ -90,8 +90,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> dict:
     """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
     args = build_parser().parse_args(argv)
-    from planner.pipeline import (FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
-                           write_outputs)
+    from planner.pipeline import (
+        FirmwareOptions,
+        PlanOptions,
+        ReadOptions,
+        default_outdir,
+        make_plan,
+        read_layout,
+        write_outputs,
+    )
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"

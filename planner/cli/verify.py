@@ -20,7 +20,6 @@ from planner.defaults import INSTALL_TOLERANCE_M
 from planner.errors import ExitCode, UsageError
 
 
-
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(
         prog="vlp-verify",
@@ -46,8 +45,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from planner.camera import Camera
     from planner.plan import load_plan
-    from planner.verify.verify import check_window_set, side_bound, verify_plan
     from planner.verify.proof import prove_window_set
+    from planner.verify.verify import check_window_set, side_bound, verify_plan
 
     doc = load_plan(args.plan)
     lums = doc["luminaires"]

@@ -15,8 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.codes import region_lattice
-from planner.codes import region_search
+from planner.codes import region_lattice, region_search
 from planner.errors import PlanningError
 from planner.graph import NeighbourGraph
 

@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from planner.camera import Camera
 from planner.codes import window as window_code
 from planner.codes.assignment import Assignment, bits_for, tile_regions
-from planner.camera import Camera
-from planner.graph import NeighbourGraph
 from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, site_triples
-from planner.verify.verify import Verification, classify, design_windows, observe
-from planner.verify.proof import Proof
 from planner.defaults import INSTALL_TOLERANCE_M
+from planner.graph import NeighbourGraph
+from planner.verify.proof import Proof
+from planner.verify.verify import Verification, classify, design_windows, observe
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
 
@@ -68,7 +68,8 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.
     windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
     if len(windows) == 0:
         return windows, np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
-    side = lambda t: np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
+    def side(t):
+        return np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
     longest = longest_side(windows, xyz)
     if others is None:
         others = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
@@ -101,7 +102,8 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.
             pas_t.append(t_r[ok])
             pas_c.append(code(c[ok]))
     pas_t, pas_c = np.concatenate(pas_t), np.concatenate(pas_c)
-    sym_cell = lambda c: (c // (base * base) == (c // base) % base) & ((c // base) % base == c % base)
+    def sym_cell(c):
+        return (c // (base * base) == (c // base) % base) & ((c // base) % base == c % base)
     # one copy per cell and reading (any rotation reads alike in a 3-fold symmetric cell);
     # never a window's own triple in its own cell
     reading = np.where(sym_cell(pas_c)[:, None], np.sort(pas_t, axis=1), pas_t)

@@ -234,7 +234,7 @@ class _Problem:
             best = cand if best is None else np.where(sym[..., None], np.minimum(best, cand), best)
         return np.where((wi < self.M)[..., None], best + self.off[wi][..., None], -1)
 
-    def in_conflict(self, m: int, code: int, A: "_Counts", P: "_Counts") -> bool:
+    def in_conflict(self, m: int, code: int, A: _Counts, P: _Counts) -> bool:
         """Triple ``m`` (at key ``code``) shares its key with an active triple, or is active and
         shares it with any triple."""
         a = A.get(code) - int(self.act[m])

@@ -28,8 +28,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from planner.defaults import UNIT_TO_M
-from planner.layout.dxf_units import Figures, choose_unit
 from planner.errors import InputError, UsageError
+from planner.layout.dxf_units import Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
 __all__ = ["read_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]

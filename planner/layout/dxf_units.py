@@ -8,11 +8,11 @@ gives are plausible for a lit ceiling; otherwise the first unit of
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
-from planner.errors import InputError, UsageError
 from planner.defaults import UNIT_TO_M
+from planner.errors import InputError, UsageError
 
 UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "m": "metres", "in": "inches", "ft": "feet"}
 

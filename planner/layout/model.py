@@ -90,7 +90,7 @@ class Layout:
         """Positions, shape (N, 3) [m]."""
         return np.array([(lum.x, lum.y, lum.z) for lum in self.luminaires], dtype=float).reshape(-1, 3)
 
-    def with_note(self, note: str) -> "Layout":
+    def with_note(self, note: str) -> Layout:
         return replace(self, notes=self.notes + (note,))
 
 

@@ -12,15 +12,15 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from planner.codes.assignment import assign_paper, bits_for, pair_lower_bound
+from planner.defaults import PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 from planner.errors import InputError
 from planner.graph import build_graph
 from planner.layout.model import Layout, Luminaire
 from planner.pipeline import PlanOptions, make_plan
-from planner.defaults import PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 
 PAPER_PRINTED = {32: (5, 4), 256: (8, 6), 512: (9, 6)}
 """The paper's printed figures per luminaire count: (naive bits, the scheme's bits) (section 2.2)."""

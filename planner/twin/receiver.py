@@ -60,7 +60,7 @@ class Modulation:
     codewords: tuple[int, ...] | None = None  # word -> ID is index + 1; None: ID = word + 1
 
     @classmethod
-    def from_plan(cls, doc: dict) -> "Modulation":
+    def from_plan(cls, doc: dict) -> Modulation:
         from planner.codes.check_bits import check_code
 
         mod, code = doc["modulation"], doc["code"]

@@ -19,13 +19,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.camera import Camera, Poses, disc_dual_conic, project_discs_at
-from planner.twin.render import Frame, Sensor, render_frame
+from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from planner.ellipse import centre_and_shape
 from planner.errors import InputError, PlannerError
 from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
 from planner.twin.receiver import Blob, Modulation, decode_frame, read_blobs, snapshot
-from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
+from planner.twin.render import Frame, Sensor, render_frame
 
 STAGES = ("blobs", "ids", "identify", "position")
 
@@ -45,7 +45,7 @@ class Twin:
     outline: list | None = None
 
     @classmethod
-    def from_plan(cls, doc: dict, sensor: Sensor = Sensor()) -> "Twin":
+    def from_plan(cls, doc: dict, sensor: Sensor = Sensor()) -> Twin:
         if not doc.get("modulation") or any("frame" not in e for e in doc["luminaires"]):
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")

@@ -18,11 +18,19 @@ import numpy as np
 
 from planner.camera import Camera, Poses
 from planner.codes.rivals import find_rivals, longest_side, site_triples
-from planner.verify.proof import Proof
 from planner.defaults import INSTALL_TOLERANCE_M
+from planner.verify.proof import Proof
 from planner.verify.window_set import window_superset
-from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
-    find_windows, sample_poses, working_area
+from planner.verify.windows import (
+    CONGRUENCE_TOLERANCE_M,
+    POSES_PER_M2,
+    PoseWindows,
+    WindowSet,
+    canonical_windows,
+    find_windows,
+    sample_poses,
+    working_area,
+)
 
 # Pose status codes, as in ``Verification.status``.
 DECODABLE, AMBIGUOUS, COLLINEAR, TOO_FEW = 0, 1, 2, 3
@@ -179,7 +187,7 @@ class Observation:
     """
 
     position: np.ndarray
-    windows_per_pose: "PoseWindows"
+    windows_per_pose: PoseWindows
     windows: WindowSet
     per_m2: float
     seed: int

@@ -65,7 +65,7 @@ class CommitRecord:
         return body + _CRC.pack(zlib.crc32(body))
 
     @classmethod
-    def unpack(cls, raw: bytes) -> "CommitRecord | None":
+    def unpack(cls, raw: bytes) -> CommitRecord | None:
         """The record, or None if its magic or CRC is wrong (erased, torn by a power cut)."""
         body, (crc,) = raw[:_RECORD.size], _CRC.unpack(raw[_RECORD.size:RECORD_BYTES])
         magic, counter, length, version, sha = _RECORD.unpack(body)
@@ -84,7 +84,7 @@ class StagingHeader:
         return body + _CRC.pack(zlib.crc32(body))
 
     @classmethod
-    def unpack(cls, raw: bytes) -> "StagingHeader | None":
+    def unpack(cls, raw: bytes) -> StagingHeader | None:
         body, (crc,) = raw[:_HEADER.size], _CRC.unpack(raw[_HEADER.size:HEADER_BYTES])
         magic, slot, length, version, sha = _HEADER.unpack(body)
         ok = magic == HEADER_MAGIC and zlib.crc32(body) == crc and slot in (1, 2)
