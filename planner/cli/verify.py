@@ -88,7 +88,8 @@ def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> N
     from planner.plan import Plan
     from planner.report.maps import render_coverage
 
-    lums = tuple(Luminaire(e["name"], *map(float, (e["x"], e["y"], e["z"], e["radius"]))) for e in doc["luminaires"])
+    lums = tuple(Luminaire(e["name"], float(e["x"]), float(e["y"]), float(e["z"]), float(e["radius"]))
+                 for e in doc["luminaires"])
     layout = Layout(lums, None, str(plan_path))
     regions = np.array([e["region"] for e in doc["luminaires"]])
     assignment = Assignment(str(doc.get("scheme", "?")), ids, regions, 0, 0, 0, "", {})
