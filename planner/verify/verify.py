@@ -63,7 +63,7 @@ class WindowSetCheck:
         return self.complete and not self.conflicts
 
     def summary(self, names: list[str], limit: int = 5) -> dict:
-        out = {
+        out: dict[str, object] = {
             "rule": "spindle, axis disc and empty triangle" if self.complete else "empty triangle",
             "max_side_m": round(self.max_side_m, 4),
             "max_side_from": "proof" if self.complete else "pose samples",
@@ -90,7 +90,7 @@ def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_si
     With a complete ``proof`` (:func:`planner.verify.proof.prove_window_set`) its triangles
     are checked; otherwise those the empty-triangle rule allows up to ``max_side_m``.
     """
-    if proof is not None and proof.complete:
+    if proof is not None and proof.triangles is not None:  # a complete proof
         tri = proof.triangles
         max_side_m = longest_side(tri, xyz)
     else:
