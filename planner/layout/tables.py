@@ -127,8 +127,8 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     lums = []
     for k, raw in enumerate(reader):
         row = {h.strip().lower(): (v.strip() if isinstance(v, str) else v) for h, v in raw.items() if h}
-        line = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
-        where = f"{path}: line {line}"
-        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": line}))
+        number = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
+        where = f"{path}: line {number}"
+        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": number}))
     reason = "given with --units" if units else ("stated in the file" if unit_in_file else "the default")
     return Layout(tuple(lums), None, str(path), unit, reason)
