@@ -31,6 +31,7 @@ through to the file at once, so a killed process keeps exactly what was programm
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import zlib
@@ -106,7 +107,7 @@ class Flash:
         self.path = Path(path) if path is not None else None
         self.bytes_written = 0  # erased + programmed bytes over this object's life
         self._budget: int | None = None
-        self._file = None
+        self._file: io.BufferedRandom | None = None
         if self.path is not None:
             self._memory = self._open_file(self.path)
         else:
