@@ -67,7 +67,7 @@ def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, noise_px: floa
     aims, azimuths = paper_test_points()
     out = []
     for tilt in tilts_deg:
-        errors = {m: [] for m in METHODS}
+        errors: dict[str, list[float]] = {m: [] for m in METHODS}
         unusable = 0
         for aim, az in zip(aims, azimuths):
             for _ in range(trials):
