@@ -15,6 +15,7 @@ window is unique): the twin checks the pixels, not the plan's coverage.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 
@@ -73,6 +74,18 @@ class PoseResult:
         return self.stage == ""
 
 
+class _Counted(TypedDict):
+    """The fields of a :class:`PoseResult` that :func:`grade` knows before it tries to locate."""
+
+    position: np.ndarray
+    angles_deg: tuple[float, float, float]
+    seen: int
+    found: int
+    read: int
+    misread: int
+    blobs: list[Blob]
+
+
 def _truth(twin: Twin, position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The LEDs in front of the camera: indices, image centres [px], minor semi-axes [px]; and those wholly in view."""
     site = twin.site
@@ -103,7 +116,7 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
     found = len(set(owner.values()) & set(whole.tolist()))
     wrong = [(b, owner[b]) for b in owner if blobs[b].id is not None and blobs[b].id != twin.site.ids[owner[b]]]
     read = sum(1 for b in owner if owner[b] in set(whole.tolist()) and blobs[b].id == twin.site.ids[owner[b]])
-    base = dict(position=position, angles_deg=tuple(angles_deg), seen=len(whole), found=found, read=read,
+    base = _Counted(position=position, angles_deg=tuple(angles_deg), seen=len(whole), found=found, read=read,
                 misread=len(wrong), blobs=blobs)
     misread = "; ".join(f"{twin.site.names[i]} (ID {twin.site.ids[i]}) read as {blobs[b].id}" for b, i in wrong)
     if found < 3:
