@@ -29,9 +29,9 @@ import serial
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from planner.firmware.render import config_image  # noqa: E402
-from planner.flash.sim import protocol_sim# noqa: E402
 from planner.flash.flasher import flash_driver, sign_image  # noqa: E402
 from planner.flash.link import Link  # noqa: E402
+from planner.flash.sim import protocol_sim  # noqa: E402
 from planner.flash.wire import BEGIN_REQUEST, VERIFY_REPLY, WRITE_HEAD, Command, Hello  # noqa: E402
 
 KEY = bytes(range(32))

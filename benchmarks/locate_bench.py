@@ -24,9 +24,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from planner.errors import PositioningError  # noqa: E402
+from planner.pipeline import PlanOptions, make_plan, read_layout  # noqa: E402
 from planner.positioning.locate import METHODS, Site, Snapshot, identify  # noqa: E402
 from planner.positioning.observation import observe  # noqa: E402
-from planner.pipeline import PlanOptions, make_plan, read_layout  # noqa: E402
 from planner.verify.windows import sample_poses, working_area  # noqa: E402
 
 
@@ -64,7 +64,7 @@ def main() -> None:
               f"   90 % {1e3 * np.percentile(err, 90):8.3f} mm")
     t0 = time.perf_counter()
     right = failed = 0
-    for p, s in batch:
+    for _p, s in batch:
         try:
             found = identify(site, Snapshot(cam, [int(ids[k]) for k in s.index], s.ellipses))
             right += list(found.luminaires) == list(s.index)

@@ -27,8 +27,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from planner.camera import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire  # noqa: E402
 from planner.pipeline import PlanOptions, ReadOptions, make_plan, read_layout  # noqa: E402
-from planner.verify.verify import classify, observe  # noqa: E402
 from planner.verify.proof import prove_window_set  # noqa: E402
+from planner.verify.verify import classify, observe  # noqa: E402
 from planner.verify.window_set import window_superset  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -66,7 +66,10 @@ def main() -> None:
         protected = (prove_window_set(xyz, radii, cam, w.install_tolerance_m).triangles if w.complete else
                      window_superset(xyz, radii, w.max_side_m, w.install_tolerance_m))  # what the plan checked
         tri = {frozenset(t) for t in protected.tolist()}
-        count = lambda per_m2, seed: observe(xyz, radii, layout.outline, cam, per_m2=per_m2, seed=seed)
+
+        def count(per_m2, seed, xyz=xyz, radii=radii, outline=layout.outline):  # this site's, bound now
+            return observe(xyz, radii, outline, cam, per_m2=per_m2, seed=seed)
+
         default, design = count(400, 0), count(2000, 1)
         fresh, amb, poses = set(), 0, 0
         for s in range(11, 11 + args.fresh_seeds):

@@ -50,7 +50,7 @@ class Camera:
     row_time_s: float = 20e-6
 
     @classmethod
-    def from_fov(cls, hfov_rad: float, width_px: int = 4000, height_px: int = 3000, **kw) -> "Camera":
+    def from_fov(cls, hfov_rad: float, width_px: int = 4000, height_px: int = 3000, **kw) -> Camera:
         """Square pixels, principal point at the image centre, focal length from the field of view."""
         f = (width_px / 2) / math.tan(hfov_rad / 2)
         return cls(width_px, height_px, f, f, width_px / 2, height_px / 2, **kw)
@@ -80,7 +80,7 @@ class Camera:
         }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Camera":
+    def from_dict(cls, d: dict) -> Camera:
         """Inverse of :meth:`to_dict`; also accepts ``hfov_deg`` without focal lengths."""
         extra = {
             "min_height_m": float(d.get("receiver_height_m", [0.5, 1.5])[0]),
@@ -122,7 +122,7 @@ class Poses:
         """Camera-to-site rotations, shape (P, 3, 3): columns are the camera's x, y, z axes."""
         return rotation_from_angles(self.tilt_rad, self.azimuth_rad, self.roll_rad)
 
-    def subset(self, index) -> "Poses":
+    def subset(self, index) -> Poses:
         return Poses(self.position[index], self.tilt_rad[index], self.azimuth_rad[index], self.roll_rad[index])
 
 

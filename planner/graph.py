@@ -225,7 +225,7 @@ def build_graph(xy: np.ndarray) -> NeighbourGraph:
     xy = np.asarray(xy, dtype=float)
     n = len(xy)
     edges = neighbour_edges(xy)
-    graph = nx.Graph()
+    graph: nx.Graph[int] = nx.Graph()
     graph.add_nodes_from(range(n))
     lengths = np.linalg.norm(xy[edges[:, 1]] - xy[edges[:, 0]], axis=1) if len(edges) else []
     graph.add_edges_from((int(u), int(v), {"length": float(d)}) for (u, v), d in zip(edges, lengths))

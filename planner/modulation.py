@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera, Poses
+from planner.defaults import DRIVER_MAX_HZ
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
 from planner.verify.windows import find_windows, sample_poses, working_area
-from planner.defaults import DRIVER_MAX_HZ
 
 FLICKER_HZ = 200.0
 """Lowest allowed repetition of the slowest on/off cycle [Hz] (IEEE 802.15.7's flicker guidance)."""

@@ -15,22 +15,21 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
-from planner.codes.assignment import assign_paper
-from planner.frame import line_code
-from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
-from planner.codes.check_bits import check_code
 from planner.camera import Camera
+from planner.codes.assignment import assign_paper
+from planner.codes.check_bits import check_code
+from planner.codes.schemes import assign_unique, assign_window
+from planner.defaults import INSTALL_TOLERANCE_M, SCHEMES
 from planner.errors import InputError, UsageError
+from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
+from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
-from planner.verify.verify import check_window_set, classify, observe, side_bound
+from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.verify.proof import prove_window_set
-from planner.defaults import INSTALL_TOLERANCE_M
-from planner.codes.schemes import assign_unique, assign_window
+from planner.verify.verify import Verification, check_window_set, classify, observe, side_bound
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
-from planner.defaults import SCHEMES
 
 LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
 
@@ -123,7 +122,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
 
     observations: dict = {}  # seed -> what the camera sees; shared by every scheme checked
 
-    def check(ids):
+    def verify_ids(ids: np.ndarray) -> Verification | None:
         if not options.verify:
             return None
         if options.seed not in observations:
@@ -135,7 +134,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     made = {}
     if options.scheme in ("paper", "auto"):
         paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
-        made["paper"] = (paper, check(paper.ids))
+        made["paper"] = (paper, verify_ids(paper.ids))
     if options.scheme in ("window", "auto"):
         made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
                                        time_budget=options.time_budget, per_m2=options.poses_per_m2,
@@ -143,7 +142,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                                        observations=observations, proof=proof)
     if options.scheme == "unique":
         unique = assign_unique(xy, graph)
-        made["unique"] = (unique, check(unique.ids))
+        made["unique"] = (unique, verify_ids(unique.ids))
     bound = max([side_bound(v.windows, xyz, options.tolerance_m) for _, v in made.values() if v]
                 + [float(a.detail.get("max_side_m", 0.0)) for a, _ in made.values()], default=0.0)
 
@@ -155,12 +154,12 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
 
     made = {k: judged(a, v) for k, (a, v) in made.items()}
     if options.scheme == "auto":
-        clean = [k for k, (_, v) in made.items() if v.clean]
+        clean = [k for k, (_, v) in made.items() if v is not None and v.clean]  # auto verifies: never None
         if clean:
             chosen = min(clean, key=lambda k: (made[k][0].bits, k != "paper"))
         else:
             unique = assign_unique(xy, graph)
-            made["unique"] = judged(unique, check(unique.ids))
+            made["unique"] = judged(unique, verify_ids(unique.ids))
             chosen = "unique"
     else:
         chosen = options.scheme
@@ -228,9 +227,8 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
 
             write_firmware(document, plan_hash(text), stage, template_dir=firmware.template_dir,
                            mcu_clock_hz=firmware.mcu_clock_hz, image_version=firmware.image_version)
-        from planner.layout.dxf_annotate import write_annotated_dxf
-
         from planner import __version__
+        from planner.layout.dxf_annotate import write_annotated_dxf
 
         is_dxf = source.suffix.lower() == ".dxf"
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),

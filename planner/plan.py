@@ -19,13 +19,13 @@ from planner.errors import InputError
 from planner.yaml_io import load_yaml
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
-    from planner.codes.assignment import Assignment
     from planner.camera import Camera
+    from planner.codes.assignment import Assignment
+    from planner.codes.check_bits import CheckCode
     from planner.graph import NeighbourGraph
     from planner.layout.model import Layout
-    from planner.positioning.accuracy import SiteAccuracy
     from planner.modulation import Modulation
-    from planner.codes.check_bits import CheckCode
+    from planner.positioning.accuracy import SiteAccuracy
     from planner.verify.verify import Verification
 
 FORMAT = "vlp-plan/1"
@@ -40,11 +40,11 @@ class Plan:
     graph: NeighbourGraph
     assignment: Assignment
     camera: Camera
-    verification: "Verification | None" = None
+    verification: Verification | None = None
     considered: dict | None = None
-    check: "CheckCode | None" = None
-    accuracy: "SiteAccuracy | None" = None
-    modulation: "Modulation | None" = None
+    check: CheckCode | None = None
+    accuracy: SiteAccuracy | None = None
+    modulation: Modulation | None = None
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""

@@ -10,10 +10,14 @@ from __future__ import annotations
 import functools
 import io
 from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
 
 from cycler import cycler
 
-RC = {
+if TYPE_CHECKING:  # matplotlib loads when a figure is drawn
+    from matplotlib.typing import RcKeyType
+
+RC: dict[RcKeyType, Any] = {
     "font.family": "DejaVu Sans",
     "font.size": 9,
     "axes.titlesize": 10,
@@ -48,7 +52,7 @@ def styled(draw):
     return wrapper
 
 
-def save_png(fig, path: str | Path) -> None:
+def save_png(fig, path: str | Path | IO[bytes]) -> None:
     """Write ``fig`` as PNG without a timestamp or version (byte-stable output), and close it."""
     import matplotlib.pyplot as plt
 

@@ -1,10 +1,14 @@
 """Literal readings of the paper's 512 scheme: 8x8 groups, quarters A-D, even LEDs shifted."""
-import itertools, numpy as np
+import itertools
+
+import numpy as np
+
 B = 8
 def group_ids(shift, qperm, step):
     ids = np.zeros((B, B), int)
     odd_cells = [(i, j) for j in range(B) for i in range(B) if (i + j) % 2 == 0]
-    for k, (i, j) in enumerate(odd_cells): ids[i, j] = 2 * k + 1
+    for k, (i, j) in enumerate(odd_cells):
+        ids[i, j] = 2 * k + 1
     even_cells = [(i, j) for j in range(B) for i in range(B) if (i + j) % 2 == 1]
     base = {c: 2 * k + 2 for k, c in enumerate(even_cells)}
     quarters = [(0, 0), (4, 0), (0, 4), (4, 4)]  # A B C D
@@ -34,16 +38,21 @@ def repeats(grid):
                     a, b = grid[i, j], grid[i + di, j + dj]
                     key = (min(a, b), max(a, b))
                     cross_border = (i // 8 != (i + di) // 8) or (j // 8 != (j + dj) // 8)
-                    if key in seen: rep += 1; border += cross_border or seen[key]
-                    else: seen[key] = cross_border
+                    if key in seen:
+                        rep += 1
+                        border += cross_border or seen[key]
+                    else:
+                        seen[key] = cross_border
     return rep, border
 results = []
 for step in [(1, 1), (1, -1), (2, 0), (0, 2), (1, 3)]:
     for qswap in itertools.permutations(range(4)):
-        if qswap == (0, 1, 2, 3): continue
+        if qswap == (0, 1, 2, 3):
+            continue
         results.append((repeats(site(qswap, step)), step, qswap))
 results.sort()
 print("best readings (repeated pairs, of which touching a group border):")
-for r in results[:5]: print(r)
+for r in results[:5]:
+    print(r)
 print("worst:", results[-1])
 print("readings tried:", len(results), "; with zero repeats:", sum(r[0][0] == 0 for r in results))

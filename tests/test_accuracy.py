@@ -5,10 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner.positioning.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
 from planner.cli.accuracy import console_main
 from planner.cli.plan import main as plan_main
 from planner.plan import load_plan
+from planner.positioning.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
 
 ROOT = Path(__file__).resolve().parents[1]
 

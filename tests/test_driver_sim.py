@@ -15,15 +15,30 @@ import zlib
 import pytest
 import serial
 
+from planner.cli.driver_sim import console_main
 from planner.firmware.render import CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash.sim import protocol_sim
-from planner.flash.sim.driver import Flash, SimulatedDriver
-from planner.cli.driver_sim import console_main
 from planner.flash.sim.bus import Faults, SimBus, SimConfigError, make_bus
+from planner.flash.sim.driver import Flash, SimulatedDriver
 from planner.flash.sim.memory import RECORD_BYTES, CommitRecord
-from planner.flash.wire import (ANY_ADDRESS, BEGIN_REPLY, BEGIN_REQUEST, COMMIT_REPLY, FLAG_RESPONSE, VERIFY_REPLY,
-                                WRITE_HEAD, WRITE_REPLY, Command, Deframer, Hello, Packet, Status, decode, encode,
-                                parse_error)
+from planner.flash.wire import (
+    ANY_ADDRESS,
+    BEGIN_REPLY,
+    BEGIN_REQUEST,
+    COMMIT_REPLY,
+    FLAG_RESPONSE,
+    VERIFY_REPLY,
+    WRITE_HEAD,
+    WRITE_REPLY,
+    Command,
+    Deframer,
+    Hello,
+    Packet,
+    Status,
+    decode,
+    encode,
+    parse_error,
+)
 
 KEY = bytes(range(1, 33))
 SLOT = 192  # small slots keep the power-cut sweep short

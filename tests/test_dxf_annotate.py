@@ -8,9 +8,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 import dxf_factory as factory
-from planner.layout.dxf_annotate import APPID, ID_LAYER, LUM_LAYER, label, write_annotated_dxf
-from planner.layout.dxf import read_dxf
 from planner.errors import InputError
+from planner.layout.dxf import read_dxf
+from planner.layout.dxf_annotate import APPID, ID_LAYER, LUM_LAYER, label, write_annotated_dxf
 from planner.layout.model import Layout, Luminaire
 
 

@@ -5,11 +5,11 @@ from pathlib import Path
 
 import pytest
 
+from planner.cli.efficiency import console_main
 from planner.cli.plan import main as plan_main
 from planner.defaults import PAPER_LAYOUTS
-from planner.studies.efficiency import curve, efficiency, lattice_layout, table_row
-from planner.cli.efficiency import console_main
 from planner.pipeline import read_layout
+from planner.studies.efficiency import curve, efficiency, lattice_layout, table_row
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ["--sizes", "16,64,256", "--window-up-to", "64"]

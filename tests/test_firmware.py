@@ -21,9 +21,19 @@ from pathlib import Path
 import pytest
 
 from planner.errors import InputError, UsageError
-from planner.firmware.render import (CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, chip_timer, config_image,
-                              default_template_dir, file_name, pack_chips, parse_config_image,
-                              render_firmware, write_firmware)
+from planner.firmware.render import (
+    CRC_OFFSET,
+    IMAGE_BYTES,
+    SIGNATURE_OFFSET,
+    chip_timer,
+    config_image,
+    default_template_dir,
+    file_name,
+    pack_chips,
+    parse_config_image,
+    render_firmware,
+    write_firmware,
+)
 
 HERE = Path(__file__).resolve().parent
 HARNESS = HERE / "harness"

@@ -14,12 +14,12 @@ from pathlib import Path
 import pytest
 import serial
 
+from planner.cli.flash import console_main
 from planner.firmware.render import SIGNATURE_OFFSET, config_image, parse_config_image
-from planner.flash.sim import protocol_sim
-from planner.flash.sim.driver import Flash, SimulatedDriver
 from planner.flash.flasher import flash_driver, sign_image
 from planner.flash.link import Link
-from planner.cli.flash import console_main
+from planner.flash.sim import protocol_sim
+from planner.flash.sim.driver import Flash, SimulatedDriver
 
 ROOT = Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from planner.camera import Camera, rotation_from_angles
+from planner.cli.locate import console_main
 from planner.cli.plan import main as plan_main
 from planner.ellipse import Ellipse
 from planner.errors import PositioningError
-from planner.positioning.locate import Site, Snapshot, identify, locate
-from planner.cli.locate import console_main
-from planner.positioning.observation import observe
 from planner.plan import load_plan
+from planner.positioning.locate import Site, Snapshot, identify, locate
+from planner.positioning.observation import observe
 from planner.verify.windows import sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parents[1]

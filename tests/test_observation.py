@@ -8,8 +8,8 @@ from planner.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, 
 from planner.errors import PositioningError
 from planner.positioning.fix import angles_of
 from planner.positioning.observation import observe, rim_points
-from planner.positioning.perspective import locate_perspective
 from planner.positioning.paper import locate_paper
+from planner.positioning.perspective import locate_perspective
 
 CAM = Camera()
 

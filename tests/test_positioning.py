@@ -4,10 +4,14 @@ import numpy as np
 import pytest
 
 from planner.camera import Camera, disc_dual_conic, rotation_from_angles
-from planner.errors import PositioningError
 from planner.ellipse import ellipse_from_dual_conic
-from planner.positioning.paper import (distance_weak_perspective, fit_focal_length, trilaterate_least_squares,
-                                 trilaterate_same_height)
+from planner.errors import PositioningError
+from planner.positioning.paper import (
+    distance_weak_perspective,
+    fit_focal_length,
+    trilaterate_least_squares,
+    trilaterate_same_height,
+)
 
 # The paper's rig (Table 2), in metres; LED radius 0.1 m assumed (the paper does not say)
 RIG = np.array([[0, 0.3, 2.5], [0, -0.3, 2.5], [0.5, 0, 2.5], [-0.5, 0, 2.5]])

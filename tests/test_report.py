@@ -16,13 +16,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.cli.plan import main as plan_main
+from conftest import grid_xy, hex_xy
 from planner.cli.flash import console_main as flash_main
-from planner.report.content import checklist, id_bill, walking_order
+from planner.cli.plan import main as plan_main
 from planner.cli.report import console_main as report_main
 from planner.cli.report import main as report_cli
-
-from conftest import grid_xy, hex_xy
+from planner.report.content import checklist, id_bill, walking_order
 
 ROOT = Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))

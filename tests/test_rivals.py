@@ -18,7 +18,8 @@ def ccw(t, xy):
 def reads_like(t, u, xy, ids, tol):
     """Same IDs counter-clockwise and corresponding sides within tol (plus 1 nm for rounding), for some rotation."""
     t, u = ccw(t, xy), ccw(u, xy)
-    side = lambda x, k: np.linalg.norm(xy[x[(k + 1) % 3]] - xy[x[k]])
+    def side(x, k):
+        return np.linalg.norm(xy[x[(k + 1) % 3]] - xy[x[k]])
     for r in range(3):
         v = u[r:] + u[:r]
         if [ids[a] for a in t] == [ids[a] for a in v] and all(abs(side(t, k) - side(v, k)) <= tol + 1e-9 for k in range(3)):

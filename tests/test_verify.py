@@ -13,12 +13,12 @@ from hypothesis import strategies as st
 
 from conftest import grid_xy
 from planner.camera import Camera, Poses, project_discs, rotation_from_angles
-from planner.graph import build_graph
-from planner.verify.verify import AMBIGUOUS, DECODABLE, verify_plan
-from planner.codes.window import window_keys
 from planner.codes.rivals import find_rivals
 from planner.codes.schemes import assign_window
+from planner.codes.window import window_keys
+from planner.graph import build_graph
 from planner.verify.proof import prove_window_set
+from planner.verify.verify import AMBIGUOUS, DECODABLE, verify_plan
 from planner.verify.windows import canonical_windows, find_windows, sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -109,7 +109,8 @@ def test_window_scheme_plans_never_share_a_key(rows, cols, jitter, seed):
         turned = np.roll(every, -r, axis=1)
         for t, key in zip(turned, map(tuple, ids[turned].tolist())):
             by_ids.setdefault(key, []).append(t)
-    sides = lambda t: np.linalg.norm(xy[np.roll(t, -1, axis=-1)] - xy[t], axis=-1)
+    def sides(t):
+        return np.linalg.norm(xy[np.roll(t, -1, axis=-1)] - xy[t], axis=-1)
     for w in check.windows.windows:
         v = w if ccw(w, xy) else w[[0, 2, 1]]
         same = np.array([u for u in by_ids.get(tuple(ids[v].tolist()), []) if set(u) != set(w)],
@@ -204,7 +205,8 @@ def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
     assert unsampled
     # A triple shaped like an unsampled window, whose IDs differ from it in one place: make them equal.
     clash = None
-    side = lambda x: np.linalg.norm(xyz[np.roll(x, -1)] - xyz[x], axis=1)
+    def side(x):
+        return np.linalg.norm(xyz[np.roll(x, -1)] - xyz[x], axis=1)
     for a, u in find_rivals(np.array(unsampled), xyz, np.ones(len(lums), np.int64), 0.01):
         for r in range(3):
             t = np.roll(rivals_ccw(unsampled[a], xyz), -r)

@@ -1,14 +1,23 @@
 """Window codes: keys, conflicts, the counting bound and the label search (checked independently)."""
 
 import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner.codes import window as wc
-from planner.codes.window import (assign_window_code, conflicting_windows, count_conflicts, cpsat_labels,
-                                 lower_bound_labels, repair_labels, search_labels, window_keys)
+from planner.codes.window import (
+    assign_window_code,
+    conflicting_windows,
+    count_conflicts,
+    cpsat_labels,
+    lower_bound_labels,
+    repair_labels,
+    search_labels,
+    window_keys,
+)
 
 
 def l_windows(rows: int, cols: int) -> np.ndarray:

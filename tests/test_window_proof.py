@@ -7,8 +7,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy, hex_xy
-from planner.verify import proof as wp
 from planner.camera import Camera, project_discs
+from planner.verify import proof as wp
 from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area
 from test_window_set import poisson_xy
 

@@ -10,8 +10,8 @@ from conftest import grid_xy, hex_xy
 from planner.camera import Camera
 from planner.layout.model import Layout, Luminaire
 from planner.pipeline import PlanOptions, make_plan
-from planner.verify.verify import AMBIGUOUS, classify, observe
 from planner.verify.proof import envelope
+from planner.verify.verify import AMBIGUOUS, classify, observe
 from planner.verify.window_set import empty_triangles, window_superset
 from planner.verify.windows import POSES_PER_M2, find_windows, sample_poses, working_area
 

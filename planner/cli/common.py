@@ -12,10 +12,10 @@ import math
 import os
 import sys
 import traceback
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from planner import __version__
-from planner.defaults import (CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, POSES_PER_M2)
+from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, POSES_PER_M2
 from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--
 class Parser(argparse.ArgumentParser):
     """argparse that raises UsageError instead of exiting, so main() stays testable."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         raise UsageError(f"{message} (see {self.prog} --help)")
 
 

@@ -86,9 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     missing = [str(p) for p in paths.values() if not p.is_file()]
     if missing and args.layouts:
         raise UsageError(f"{missing[0]}: no such file; give --layouts DIR with grid-32/256/512.yaml")
-    from planner.studies.efficiency import curve, lattice_layout, site_figures, table_row
     from planner.pipeline import read_layout
     from planner.plan import load_plan
+    from planner.studies.efficiency import curve, lattice_layout, site_figures, table_row
 
     built = bool(missing)  # an installed copy without the repository: the same grids, built in code
     site = site_figures(load_plan(args.plan), args.plan) if args.plan else None
@@ -133,11 +133,11 @@ def text_report(table: list[TableRow], rows: list[CurveRow], site: dict | None, 
             f"up to {args.window_up_to} luminaires)",
             f"{'luminaires':>10} {'naive':>5} {'paper scheme':>12} {'pair bound':>10} {'window':>12} "
             f"{'its bound':>9} {'time [s]':>8}"]
-    for r in rows:
-        bound = "-" if r.window_bound_bits is None else str(r.window_bound_bits)
-        flag = "" if not r.window_ambiguous_poses else f"  ({r.window_ambiguous_poses} ambiguous poses)"
-        out.append(f"{r.luminaires:>10} {r.naive_bits:>5} {_or_not(r.paper_bits):>12} {r.pair_bound_bits:>10} "
-                   f"{_or_not(r.window_bits):>12} {bound:>9} {sum(r.seconds.values()):>8.1f}{flag}")
+    for c in rows:
+        bound = "-" if c.window_bound_bits is None else str(c.window_bound_bits)
+        flag = "" if not c.window_ambiguous_poses else f"  ({c.window_ambiguous_poses} ambiguous poses)"
+        out.append(f"{c.luminaires:>10} {c.naive_bits:>5} {_or_not(c.paper_bits):>12} {c.pair_bound_bits:>10} "
+                   f"{_or_not(c.window_bits):>12} {bound:>9} {sum(c.seconds.values()):>8.1f}{flag}")
     if site:
         considered = "; ".join(f"{k} {v.get('bits')} bits ({v.get('ambiguous_poses')} ambiguous poses)"
                                for k, v in site["schemes_considered"].items())

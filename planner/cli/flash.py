@@ -23,7 +23,6 @@ from planner.cli import common as cli
 from planner.errors import ExitCode, InputError, UsageError
 
 
-
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog="vlp-flash", description="Flash luminaire drivers over a serial link with the configuration "
                     "images vlp-plan wrote (OUTDIR/firmware/), signed with the site key; verify and journal each.",

@@ -98,8 +98,8 @@ def result_document(site: Site, snap: Snapshot, found, max_residual_px: float = 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from planner.positioning.locate import Site, locate
     from planner.plan import load_plan
+    from planner.positioning.locate import Site, locate
     from planner.positioning.snapshot_file import read_snapshot
 
     doc = load_plan(args.plan)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from planner import __version__
 from planner.cli import common as cli
-from planner.defaults import (DRIVER_MAX_HZ, ERROR_POSES_PER_M2, LINE_CODE_NAMES, LOCATE_METHODS, SCHEMES, UNIT_TO_M)
+from planner.defaults import DRIVER_MAX_HZ, ERROR_POSES_PER_M2, LINE_CODE_NAMES, LOCATE_METHODS, SCHEMES, UNIT_TO_M
 from planner.errors import ExitCode, UsageError
 
 LOW_COVERAGE = 0.5
@@ -90,8 +90,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> dict:
     """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
     args = build_parser().parse_args(argv)
-    from planner.pipeline import (FirmwareOptions, PlanOptions, ReadOptions, default_outdir, make_plan, read_layout,
-                           write_outputs)
+    from planner.pipeline import (
+        FirmwareOptions,
+        PlanOptions,
+        ReadOptions,
+        default_outdir,
+        make_plan,
+        read_layout,
+        write_outputs,
+    )
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
@@ -111,6 +118,8 @@ def main(argv: list[str] | None = None) -> dict:
                                                              args.mcu_clock_hz, args.image_version)
     written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware, with_report=not args.no_report)
     a, g = plan.assignment, plan.graph
+    check = plan.check
+    assert check is not None  # make_plan always sets the check code
     summary = {
         "layout": str(args.layout),
         "luminaires": len(layout.luminaires),
@@ -128,8 +137,8 @@ def main(argv: list[str] | None = None) -> dict:
         "efficiency": round(a.efficiency, 4),
         "regions": int(a.regions.max()) + 1,
         "max_id": a.max_id,
-        "check_distance": plan.check.distance,
-        "word_bits": plan.check.word_bits,
+        "check_distance": check.distance,
+        "word_bits": check.word_bits,
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
@@ -153,6 +162,7 @@ def main(argv: list[str] | None = None) -> dict:
               "scheme; see coverage.png and vlp-verify", file=sys.stderr)
         summary["exit_code"] = ExitCode.CHECK_FAILED
     elif v is not None and not v.clean:
+        assert v.window_set is not None  # no ambiguous pose, so the window set is what is not clean
         first = v.window_set.conflicts[0]
         names = [lum.name for lum in plan.layout.luminaires]
         print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} triangles that may be windows read like "

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 from planner.cli import common as cli
 from planner.errors import UsageError
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> dict:
         raise UsageError(f"-o {outdir}: exists and is not a directory")
     written = write_report(doc, digest, plan_path.parent, outdir, entries)
     statuses = [s.status for s in checklist(doc, entries)]
-    result = {
+    result: dict[str, Any] = {
         "written": [str(p) for p in written],
         "journal": str(journal_path) if entries is not None else None,
         "luminaires": len(doc["luminaires"]),

@@ -14,8 +14,9 @@ import json
 import math
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from planner.cli import common as cli
 from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
@@ -126,6 +127,7 @@ def run_batch(doc: dict, args, sensor: Sensor) -> list[PoseResult]:
     show = sys.stderr.isatty()
     results = []
     init = (doc, sensor, args.tolerance_cm / 100)
+    stream: Iterator[PoseResult]
     if args.jobs == 1:
         _init(*init)
         stream = map(_one, tasks)
@@ -207,7 +209,7 @@ def _single(doc: dict, args, sensor: Sensor) -> int:
     r, frame = run_pose(twin, position, rotation, angles, np.random.default_rng(args.seed), args.tolerance_cm / 100)
     if args.png:
         _write_png(Path(args.png), frame.image)
-    blobs = [{"centre_px": [round(b.ellipse.cx, 2), round(b.ellipse.cy, 2)] if b.ellipse else None,
+    blobs: list[dict[str, Any]] = [{"centre_px": [round(b.ellipse.cx, 2), round(b.ellipse.cy, 2)] if b.ellipse else None,
               "axes_px": [round(b.ellipse.major, 2), round(b.ellipse.minor, 2)] if b.ellipse else None,
               "id": b.id, "chips": b.chips, "problem": b.problem} for b in r.blobs]
     result = {"pose": _pose_text(r), "located": r.ok, "stage": r.stage or None, "detail": r.detail,

@@ -20,7 +20,6 @@ from planner.defaults import INSTALL_TOLERANCE_M
 from planner.errors import ExitCode, UsageError
 
 
-
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(
         prog="vlp-verify",
@@ -46,8 +45,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from planner.camera import Camera
     from planner.plan import load_plan
-    from planner.verify.verify import check_window_set, side_bound, verify_plan
     from planner.verify.proof import prove_window_set
+    from planner.verify.verify import check_window_set, side_bound, verify_plan
 
     doc = load_plan(args.plan)
     lums = doc["luminaires"]
@@ -89,7 +88,8 @@ def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> N
     from planner.plan import Plan
     from planner.report.maps import render_coverage
 
-    lums = tuple(Luminaire(e["name"], *map(float, (e["x"], e["y"], e["z"], e["radius"]))) for e in doc["luminaires"])
+    lums = tuple(Luminaire(e["name"], float(e["x"]), float(e["y"]), float(e["z"]), float(e["radius"]))
+                 for e in doc["luminaires"])
     layout = Layout(lums, None, str(plan_path))
     regions = np.array([e["region"] for e in doc["luminaires"]])
     assignment = Assignment(str(doc.get("scheme", "?")), ids, regions, 0, 0, 0, "", {})

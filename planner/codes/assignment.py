@@ -15,8 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.codes import region_lattice
-from planner.codes import region_search
+from planner.codes import region_lattice, region_search
 from planner.errors import PlanningError
 from planner.graph import NeighbourGraph
 
@@ -92,6 +91,7 @@ def pair_lower_bound(graph: NeighbourGraph) -> tuple[int, int]:
         best = top if best is None else min(best, top)
         if 2 * a - 1 > best:
             break
+    assert best is not None  # a cross edge exists, so n_edges >= deg_even >= 1 and the loop ran
     return best, bits_for(best)
 
 
@@ -124,7 +124,7 @@ def tile_regions(xy: np.ndarray, graph: NeighbourGraph, alphabet: int) -> np.nda
     The tile side is ``sqrt(alphabet)`` typical neighbour spacings, aligned to the
     layout's principal axis; tiles are numbered row by row.
     """
-    lengths = [d for _, _, d in graph.graph.edges(data="length")]
+    lengths = [d["length"] for _, _, d in graph.graph.edges(data=True)]
     spacing = float(np.median(lengths)) if lengths else 1.0
     side = max(spacing, spacing * math.sqrt(alphabet))
     c, s = math.cos(graph.angle_rad), math.sin(graph.angle_rad)
@@ -161,7 +161,7 @@ def assign_paper(xy: np.ndarray, graph: NeighbourGraph, *, time_budget: float = 
         a, b, d, transposed = code.block
         ids, regions = code.ids, code.regions
         method = "lattice construction"
-        detail = {"group_columns": a, "group_rows": d, "group_shift": b, "transposed": transposed,
+        detail: dict[str, object] = {"group_columns": a, "group_rows": d, "group_shift": b, "transposed": transposed,
                   "group_size": code.alphabet}
     else:
         ids, method = region_search.search(graph, bound_bits, time_budget, seed)

@@ -53,9 +53,9 @@ class LatticeCode:
     alphabet: int
 
 
-def block_lattices(alphabet: int):
+def block_lattices(alphabet: int) -> list[tuple[int, int, int]]:
     """Block lattices ``(a, b, d)`` of index ``alphabet`` inside Lc, squarest first."""
-    found = []
+    found: list[tuple[int, int, int]] = []
     for a in range(4, alphabet + 1, 4):
         if alphabet % a:
             continue
@@ -77,8 +77,8 @@ def _reduce(cells: np.ndarray, a: int, b: int, d: int):
 
 def _domain_tables(a: int, d: int, fixed_parity: int):
     """Per-residue ID tables: fixed-class rank, permuted-class coset and index within it."""
-    ri, rj = np.meshgrid(np.arange(a), np.arange(d), indexing="ij")
-    ri, rj = ri.ravel(), rj.ravel()
+    gi, gj = np.meshgrid(np.arange(a), np.arange(d), indexing="ij")
+    ri, rj = gi.ravel(), gj.ravel()
     order = np.lexsort((ri, rj))  # row by row, as a person reads a group
     ri, rj = ri[order], rj[order]
     fixed = (ri + rj) % 2 == fixed_parity

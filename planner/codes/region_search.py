@@ -83,25 +83,25 @@ def cpsat_labels(graph: NeighbourGraph, per_class: int, time_budget: float,
     odd = graph.odd
     n = len(odd)
     model = cp_model.CpModel()
-    x = [model.NewIntVar(0, per_class - 1, f"x{v}") for v in range(n)]
+    x = [model.new_int_var(0, per_class - 1, f"x{v}") for v in range(n)]
     cross = graph.cross_edges
     if len(cross):
-        model.AddAllDifferent([x[int(u)] * per_class + x[int(w)] for u, w in cross])
+        model.add_all_different([x[int(u)] * per_class + x[int(w)] for u, w in cross])
     for u, w in graph.same_class_edges:
-        model.Add(x[int(u)] != x[int(w)])
+        model.add(x[int(u)] != x[int(w)])
     if n:
-        model.Add(x[0] == 0)  # labels are interchangeable: fix one
+        model.add(x[0] == 0)  # labels are interchangeable: fix one
     solver = cp_model.CpSolver()
     solver.parameters.max_deterministic_time = time_budget
     solver.parameters.max_time_in_seconds = WALL_FACTOR * time_budget  # safety net, see cpsat_wall_stopped
     solver.parameters.num_workers = 2
     solver.parameters.interleave_search = True
     solver.parameters.random_seed = seed
-    status = solver.Solve(model)
-    wall_stopped = solver.WallTime() >= 0.99 * WALL_FACTOR * time_budget
+    status = solver.solve(model)
+    wall_stopped = solver.wall_time >= 0.99 * WALL_FACTOR * time_budget
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
         return None, wall_stopped
-    return np.array([solver.Value(v) for v in x], dtype=np.int64), wall_stopped
+    return np.array([solver.value(v) for v in x], dtype=np.int64), wall_stopped
 
 
 def labels_to_ids(odd: np.ndarray, labels: np.ndarray) -> np.ndarray:

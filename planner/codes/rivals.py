@@ -114,5 +114,10 @@ def find_rivals(windows: np.ndarray, xyz: np.ndarray, ids: np.ndarray, tolerance
     near = np.all(np.abs(q.sides[qi] - s.sides[si]) <= tolerance_m + 1e-9, axis=1)
     same = np.sort(q.triple[qi], axis=1) == np.sort(s.triple[si], axis=1)
     hit = near & ~same.all(axis=1)
-    found = {(int(q.row[a]), tuple(int(v) for v in s.triple[b])) for a, b in zip(qi[hit], si[hit])}
+    found = {(int(q.row[a]), _triple(s.triple[b])) for a, b in zip(qi[hit], si[hit])}
     return sorted(found)
+
+
+def _triple(t: np.ndarray) -> tuple[int, int, int]:
+    a, b, c = (int(v) for v in t)
+    return a, b, c

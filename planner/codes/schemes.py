@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from planner.camera import Camera
 from planner.codes import window as window_code
 from planner.codes.assignment import Assignment, bits_for, tile_regions
-from planner.camera import Camera
-from planner.graph import NeighbourGraph
 from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, site_triples
-from planner.verify.verify import Verification, classify, design_windows, observe
-from planner.verify.proof import Proof
 from planner.defaults import INSTALL_TOLERANCE_M
+from planner.graph import NeighbourGraph
+from planner.verify.proof import Proof
+from planner.verify.verify import Verification, classify, design_windows, observe
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
 
@@ -55,7 +55,8 @@ DESIGN_MAX_POSES = 2_000_000
 """Cap on the design sample, for very large sites."""
 
 
-def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.ndarray | None = None):
+def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
+           others: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The windows (active) and every triple of the site that could read like one (passive).
 
     A triple's shape is its cell: each side, counter-clockwise from the canonical vertex,
@@ -68,7 +69,8 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.
     windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
     if len(windows) == 0:
         return windows, np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
-    side = lambda t: np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
+    def side(t):
+        return np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
     longest = longest_side(windows, xyz)
     if others is None:
         others = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
@@ -92,16 +94,18 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, others: np.
     # every short triple, every rotation, every neighbouring cell that holds a window
     s_cells = np.floor(side(site) / tolerance_m).astype(np.int64)
     offsets = np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij")).reshape(3, -1).T
-    pas_t, pas_c = [], []
+    pas_t_parts: list[np.ndarray] = []
+    pas_c_parts: list[np.ndarray] = []
     for r in range(3):
         t_r, c_r = np.roll(site, -r, axis=1), np.roll(s_cells, -r, axis=1)
         for o in offsets:
             c = c_r + o
             ok = canonical(c) & np.isin(code(c), held) & (c >= 0).all(axis=1)
-            pas_t.append(t_r[ok])
-            pas_c.append(code(c[ok]))
-    pas_t, pas_c = np.concatenate(pas_t), np.concatenate(pas_c)
-    sym_cell = lambda c: (c // (base * base) == (c // base) % base) & ((c // base) % base == c % base)
+            pas_t_parts.append(t_r[ok])
+            pas_c_parts.append(code(c[ok]))
+    pas_t, pas_c = np.concatenate(pas_t_parts), np.concatenate(pas_c_parts)
+    def sym_cell(c):
+        return (c // (base * base) == (c // base) % base) & ((c // base) % base == c % base)
     # one copy per cell and reading (any rotation reads alike in a 3-fold symmetric cell);
     # never a window's own triple in its own cell
     reading = np.where(sym_cell(pas_c)[:, None], np.sort(pas_t, axis=1), pas_t)
@@ -181,8 +185,9 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     check_seeds = [seed + 1000 * (r + 1) for r in range(CHECK_SEEDS - 1)] + [seed]
     for round_ in range(REPAIR_ROUNDS + 1):
         found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
-        missed, check = [], None
-        if proof is not None and proof.complete:  # proved windows that read alike join the protected ones
+        missed: list[tuple[int, ...]] = []
+        check: Verification | None = None
+        if proof is not None and proof.triangles is not None:  # proved windows that read alike join the protected ones
             missed.extend(tuple(proof.triangles[r]) for r, _ in find_rivals(proof.triangles, xyz, labels + 1,
                                                                               tolerance_m))
         for s in check_seeds:
@@ -192,6 +197,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
             break
         windows = np.vstack([windows, np.array(missed, dtype=np.int64).reshape(-1, 3)])
         if lazy:
+            assert others is not None  # lazy keying starts from the windows and only grows
             others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])
         widen_after = PROOF_WIDEN_AFTER if proof is not None and proof.complete else WIDEN_AFTER
         if round_ == widen_after:  # repairs at this width keep making new rivals: one bit more
@@ -208,4 +214,5 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
               "lower_bound_labels": int(code.lower_bound_labels)}
     assignment = Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, bits_for(n),
                             int(code.lower_bound_bits), method, detail)
+    assert check is not None  # check_seeds is never empty
     return assignment, check

@@ -234,7 +234,7 @@ class _Problem:
             best = cand if best is None else np.where(sym[..., None], np.minimum(best, cand), best)
         return np.where((wi < self.M)[..., None], best + self.off[wi][..., None], -1)
 
-    def in_conflict(self, m: int, code: int, A: "_Counts", P: "_Counts") -> bool:
+    def in_conflict(self, m: int, code: int, A: _Counts, P: _Counts) -> bool:
         """Triple ``m`` (at key ``code``) shares its key with an active triple, or is active and
         shares it with any triple."""
         a = A.get(code) - int(self.act[m])
@@ -276,6 +276,7 @@ def _sweeps(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, max_sweep
             new[a:a + step] = cost.argmin(axis=1)
         lab[us] = new
     lab[:] = best_lab
+    assert best is not None  # the first sweep sets it
     return best
 
 
@@ -397,26 +398,26 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
     w, s, sym = _arrays(windows, shape, symmetric)
     model = cp_model.CpModel()
     used = np.unique(w)
-    x = {int(v): model.NewIntVar(0, K - 1, f"x{v}") for v in used}
+    x = {int(v): model.new_int_var(0, K - 1, f"x{v}") for v in used}
     groups: dict[int, list] = {}
     for m, (a, b, c) in enumerate(w.tolist()):
         r0 = K * K * x[a] + K * x[b] + x[c]
         if sym[m]:
-            y = model.NewIntVar(0, K ** 3 - 1, f"k{m}")
-            model.AddMinEquality(y, [r0, K * K * x[b] + K * x[c] + x[a], K * K * x[c] + K * x[a] + x[b]])
+            y = model.new_int_var(0, K ** 3 - 1, f"k{m}")
+            model.add_min_equality(y, [r0, K * K * x[b] + K * x[c] + x[a], K * K * x[c] + K * x[a] + x[b]])
             r0 = y
         groups.setdefault(int(s[m]), []).append(r0)
     for exprs in groups.values():
         if len(exprs) > 1:
-            model.AddAllDifferent(exprs)
+            model.add_all_different(exprs)
     if len(used):
         first = int(used[0])
-        model.Add(x[first] == 0)  # labels are interchangeable: fix one
+        model.add(x[first] == 0)  # labels are interchangeable: fix one
         if hint is not None:
             h = np.asarray(hint, dtype=np.int64)
             swap = np.where(h == h[first], 0, np.where(h == 0, h[first], h))  # relabel so hint[first] == 0
             for v, var in x.items():
-                model.AddHint(var, int(swap[v]))
+                model.add_hint(var, int(swap[v]))
     solver = cp_model.CpSolver()
     solver.parameters.max_deterministic_time = time_budget
     solver.parameters.max_time_in_seconds = 3.0 * time_budget
@@ -424,13 +425,13 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
     solver.parameters.interleave_search = True
     solver.parameters.random_seed = seed
     solver.parameters.stop_after_first_solution = True  # else a long interleaved task runs on to the wall limit
-    status = solver.Solve(model)
-    wall_stopped = solver.WallTime() >= 0.99 * 3.0 * time_budget
+    status = solver.solve(model)
+    wall_stopped = solver.wall_time >= 0.99 * 3.0 * time_budget
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
         return None, status == cp_model.INFEASIBLE, wall_stopped
     lab = np.zeros(n, np.int64)
     for v, var in x.items():
-        lab[v] = solver.Value(var)
+        lab[v] = solver.value(var)
     if count_conflicts(w, s, symmetric, lab, K):
         return None, False, wall_stopped  # never expected: independent check of the model
     return lab, False, wall_stopped
@@ -464,6 +465,7 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
         same = _pairs(s, act)[0]  # pairs that share a shape, whatever the labels
         while same / 8 ** start > max(HOPELESS_SHARE * act.sum(), HOPELESS_MIN):
             start += 1
+    lab: np.ndarray | None  # None while no labels of this width are found
     for b in range(start, 64):
         K = 2 ** b
         if (int(s.max(initial=0)) + 1) * K ** 3 >= 2 ** 62:  # keys overflow: only absurd shape counts

@@ -201,6 +201,7 @@ def _environment(template_dir: Path) -> jinja2.Environment:
 def _render(env: jinja2.Environment, template_dir: Path, name: str, context: dict) -> str:
     """Render one template; any failure becomes one InputError naming file and line."""
     path = template_dir / name
+    line: int | None
     try:
         return env.get_template(name).render(context)
     except jinja2.TemplateSyntaxError as exc:
@@ -227,7 +228,9 @@ def render_firmware(doc: dict, plan_hash: str, *, template_dir: Path | None = No
         raise UsageError(f"{template_dir}: no *.j2 templates in the folder")
     if IMAGE_FILE + ".j2" in names:
         raise UsageError(f"{template_dir / (IMAGE_FILE + '.j2')}: would overwrite the binary image; rename it")
-    env, out, folders = _environment(template_dir), {}, {}
+    env = _environment(template_dir)
+    out: dict[str, bytes] = {}
+    folders: dict[str, str] = {}  # folder name (lower case) -> the luminaire it belongs to
     for lum in doc.get("luminaires") or []:
         ctx = template_context(doc, lum, plan_hash, mcu_clock_hz=mcu_clock_hz, image_version=image_version)
         other = folders.setdefault(ctx["file_name"].lower(), ctx["name"])

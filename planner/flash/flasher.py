@@ -14,13 +14,26 @@ import hmac
 import struct
 import time
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from planner.firmware.render import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
 from planner.flash.link import Link, LinkError
-from planner.flash.wire import (BEGIN_REPLY, BEGIN_REQUEST, CAP_AB_SLOTS, CAP_HMAC, CAP_RESUME, COMMIT_REQUEST,
-                   PROTOCOL_VERSION, VERIFY_REPLY, WRITE_HEAD, WRITE_REPLY, Command, Hello, Status)
+from planner.flash.wire import (
+    BEGIN_REPLY,
+    BEGIN_REQUEST,
+    CAP_AB_SLOTS,
+    CAP_HMAC,
+    CAP_RESUME,
+    COMMIT_REQUEST,
+    PROTOCOL_VERSION,
+    VERIFY_REPLY,
+    WRITE_HEAD,
+    WRITE_REPLY,
+    Command,
+    Hello,
+    Status,
+)
 
 SESSIONS = 3
 """Whole BEGIN..COMMIT attempts per driver before it is reported failed."""

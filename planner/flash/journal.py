@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import os
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 from planner.errors import InputError
@@ -48,7 +48,7 @@ class Journal:
             "id": luminaire_id, "where": where, "driver_serial": result.serial, "status": result.status,
             "verified": result.verified, "image_sha256": result.image_sha256,
             "active_version": result.active_version, "message": result.message,
-            "time": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "time": datetime.now(UTC).isoformat(timespec="seconds"),
         }
         self.save()
 

@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 
 from planner.errors import PlannerError
-from planner.flash.wire import (FLAG_RESPONSE, Command, Deframer, Packet, Status, WireError, decode, encode, parse_error)
+from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status, WireError, decode, encode, parse_error
 
 RETRIES = 4
 BASE_TIMEOUT_S = 0.020

@@ -150,7 +150,7 @@ class Hello:
                                 self.active_version, self.active_sha256)
 
     @classmethod
-    def unpack(cls, payload: bytes) -> "Hello":
+    def unpack(cls, payload: bytes) -> Hello:
         f = list(HELLO_REPLY.unpack(payload[:HELLO_REPLY.size]))
         f[6] = f[6].rstrip(b"\x00").decode("ascii", "replace")
         return cls(*f)

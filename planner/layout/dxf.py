@@ -16,6 +16,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import ezdxf
 import numpy as np
@@ -28,8 +29,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from planner.defaults import UNIT_TO_M
-from planner.layout.dxf_units import Figures, choose_unit
 from planner.errors import InputError, UsageError
+from planner.layout.dxf_units import Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
 __all__ = ["read_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
@@ -308,7 +309,9 @@ class _Parts:
             counts = np.bincount(labels)
             centres = np.column_stack([np.bincount(labels, xy[:, i]) / counts for i in (0, 1)])
             if len(centres) >= 2:
-                spacing = float(np.median(cKDTree(centres).query(centres, k=2)[0][:, 1]))
+                # many points: arrays (the stubs' return type also allows one point's scalars)
+                dist = cast(np.ndarray, cKDTree(centres).query(centres, k=2)[0])
+                spacing = float(np.median(dist[:, 1]))
             elif np.ptp(xy, axis=0).any():  # distinct parts all merged: the unit is too small
                 spacing = float(np.hypot(*np.ptp(xy, axis=0)))
             z = self.xyz[:, 2][self.xyz[:, 2] != 0] * scale
@@ -316,7 +319,8 @@ class _Parts:
         size = None
         if spacing is None and outline:
             pts = np.asarray(outline) * scale
-            size = tuple(float(s) for s in pts.max(axis=0) - pts.min(axis=0))
+            width, depth = pts.max(axis=0) - pts.min(axis=0)  # outline points are (x, y)
+            size = (float(width), float(depth))
         return Figures(spacing, height, size)
 
 

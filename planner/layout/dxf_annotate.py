@@ -11,18 +11,18 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Iterator
 from contextlib import contextmanager
+from importlib import resources
 from pathlib import Path
-from typing import Iterator
 
 import ezdxf
-from importlib import resources
 from ezdxf.document import Drawing
 from ezdxf.enums import TextEntityAlignment
 
-from planner.layout.dxf import load_drawing
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError
+from planner.layout.dxf import load_drawing
 from planner.layout.model import DEFAULT_RADIUS_M, Layout
 
 __all__ = ["write_annotated_dxf", "dxf_bytes", "fixed_metadata", "ID_LAYER", "LUM_LAYER", "APPID"]

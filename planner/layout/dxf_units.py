@@ -8,11 +8,11 @@ gives are plausible for a lit ceiling; otherwise the first unit of
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
-from planner.errors import InputError, UsageError
 from planner.defaults import UNIT_TO_M
+from planner.errors import InputError, UsageError
 
 UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "m": "metres", "in": "inches", "ft": "feet"}
 
@@ -118,10 +118,10 @@ def choose_unit(
     """
     if override is not None:
         unit = parse_unit(override)
-        figures = measure(UNIT_TO_M[unit])
+        given = measure(UNIT_TO_M[unit])
         notes = []
-        if figures.problems():
-            notes.append(f"--units {unit}: {'; '.join(figures.problems())}, which looks implausible; check the unit")
+        if given.problems():
+            notes.append(f"--units {unit}: {'; '.join(given.problems())}, which looks implausible; check the unit")
         return unit, f"given with --units ({UNIT_NAMES[unit]})", notes
 
     header = INSUNITS_TO_UNIT.get(insunits)
@@ -149,6 +149,7 @@ def choose_unit(
         elif raw.height_m is not None:
             found = f"luminaire Z is {_fmt(raw.height_m)} drawing units"
         else:
+            assert raw.outline_m is not None  # the figures are not empty (above), in any unit
             found = f"room outline is {_fmt(raw.outline_m[0])} x {_fmt(raw.outline_m[1])} drawing units"
         raise InputError(
             f"{where}: {found}, not plausible in mm, cm, m, in or ft "

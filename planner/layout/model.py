@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 from matplotlib.path import Path as _PolygonPath
@@ -90,7 +91,7 @@ class Layout:
         """Positions, shape (N, 3) [m]."""
         return np.array([(lum.x, lum.y, lum.z) for lum in self.luminaires], dtype=float).reshape(-1, 3)
 
-    def with_note(self, note: str) -> "Layout":
+    def with_note(self, note: str) -> Layout:
         return replace(self, notes=self.notes + (note,))
 
 
@@ -122,7 +123,8 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     if not np.all(np.isfinite(xy)) or not np.all(radii > 0):
         raise InputError(f"{where}: a luminaire has a non-finite position or a radius <= 0")
     tree = cKDTree(xy)
-    dist, idx = tree.query(xy, k=2)
+    # many points and k=2: arrays (the stubs' return type also allows one point's scalars)
+    dist, idx = cast("tuple[np.ndarray, np.ndarray]", tree.query(xy, k=2))
     gap = dist[:, 1] - (radii + radii[idx[:, 1]])
     worst = int(np.argmin(gap))
     if gap[worst] < 0:

@@ -9,11 +9,10 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-
-from planner.errors import InputError
-from planner.yaml_io import load_yaml
 from planner.defaults import UNIT_TO_M
+from planner.errors import InputError
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
+from planner.yaml_io import load_yaml
 
 _FIELDS = {"name", "x", "y", "z", "radius"}
 
@@ -128,8 +127,8 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     lums = []
     for k, raw in enumerate(reader):
         row = {h.strip().lower(): (v.strip() if isinstance(v, str) else v) for h, v in raw.items() if h}
-        line = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
-        where = f"{path}: line {line}"
-        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": line}))
+        number = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
+        where = f"{path}: line {number}"
+        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": number}))
     reason = "given with --units" if units else ("stated in the file" if unit_in_file else "the default")
     return Layout(tuple(lums), None, str(path), unit, reason)

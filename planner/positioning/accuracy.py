@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera, Poses, rotation_from_angles
+from planner.defaults import ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
+from planner.plot_style import save_png, styled
 from planner.positioning.locate import METHODS
 from planner.positioning.observation import NOISE_PX, observe
-from planner.plot_style import save_png, styled
-from planner.defaults import ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 
 # The paper's rig (Table 2), metres; its LED radius and tilts are in planner.defaults.
 PAPER_LEDS_M = np.array([[0.0, 0.3, 2.5], [0.0, -0.3, 2.5], [0.5, 0.0, 2.5], [-0.5, 0.0, 2.5]])
@@ -67,7 +67,7 @@ def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, noise_px: floa
     aims, azimuths = paper_test_points()
     out = []
     for tilt in tilts_deg:
-        errors = {m: [] for m in METHODS}
+        errors: dict[str, list[float]] = {m: [] for m in METHODS}
         unusable = 0
         for aim, az in zip(aims, azimuths):
             for _ in range(trials):

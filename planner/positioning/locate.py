@@ -11,16 +11,16 @@ within ``max_residual_px``. Exactly one place must remain.
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 
 from planner.camera import Camera, disc_dual_conic
+from planner.defaults import MAX_RESIDUAL_PX
 from planner.ellipse import Ellipse, centre_and_shape
 from planner.errors import InputError, PositioningError
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
-from planner.positioning.perspective import initial_poses, locate_perspective
 from planner.positioning.paper import distance_weak_perspective, locate_paper
-from planner.defaults import MAX_RESIDUAL_PX
-
+from planner.positioning.perspective import initial_poses, locate_perspective
 
 SPACING_TOLERANCE = 0.35
 """Relative error allowed between a luminaire pair's spacing and its weak-perspective estimate."""
@@ -38,7 +38,7 @@ class Site:
     ids: np.ndarray
 
     @classmethod
-    def from_plan(cls, doc: dict) -> "Site":
+    def from_plan(cls, doc: dict) -> Site:
         lums = doc["luminaires"]
         return cls([str(e["name"]) for e in lums], np.array([[e["x"], e["y"], e["z"]] for e in lums], float),
                    np.array([e["radius"] for e in lums], float), np.array([e["id"] for e in lums], np.int64))

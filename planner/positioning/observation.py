@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera, disc_dual_conic, project_discs_at
-from planner.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
 from planner.defaults import NOISE_PX
+from planner.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
 
 
 @dataclass(frozen=True)

@@ -65,7 +65,11 @@ def trilaterate_least_squares(leds_m: np.ndarray, d_m: np.ndarray, start: np.nda
         raise PositioningError(f"{len(leds_m)} LEDs: a position needs at least three")
     if start is None:
         start = leds_m.mean(axis=0) - np.array([0.0, 0.0, float(np.mean(d_m))])
-    fit = least_squares(lambda p: np.linalg.norm(leds_m - p, axis=1) - d_m, start)
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(leds_m - p, axis=1) - d_m
+
+    fit = least_squares(residuals, start)
     return fit.x, float(np.sqrt(np.mean(fit.fun**2)))
 
 

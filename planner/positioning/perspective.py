@@ -20,9 +20,19 @@ from scipy.spatial.transform import Rotation
 from planner.camera import Camera
 from planner.ellipse import Ellipse
 from planner.errors import PositioningError
-from planner.positioning.fix import (BAD_PX, Fix, anchor_triple, check_geometry, ellipse_residuals, observed, orientation_at,
-                  residuals_batch, rms)
+from planner.positioning.fix import (
+    BAD_PX,
+    Fix,
+    anchor_triple,
+    check_geometry,
+    ellipse_residuals,
+    observed,
+    orientation_at,
+    residuals_batch,
+    rms,
+)
 from planner.positioning.paper import distance_weak_perspective, trilaterate_least_squares, trilaterate_same_height
+
 
 def p3p_poses(xyz3: np.ndarray, centres3_px: np.ndarray, camera: Camera) -> list[tuple[np.ndarray, np.ndarray]]:
     """P3P's solutions as (camera centre [m], camera-to-site rotation), camera below the LEDs."""

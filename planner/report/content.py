@@ -9,6 +9,7 @@ drawn by :mod:`planner.report.figures` and the files written by
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -30,20 +31,24 @@ def walking_order(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if n > 1:
         from scipy.spatial import cKDTree
 
-        d, _ = cKDTree(xy).query(xy, k=2)
+        # many points: arrays (the stubs' return type also allows one point's scalars)
+        d = cast(np.ndarray, cKDTree(xy).query(xy, k=2)[0])
         pitch = float(np.median(d[:, 1]))
     else:
         pitch = 1.0
     tol = ROW_TOLERANCE * pitch
     by_y = np.lexsort((xy[:, 0], xy[:, 1]))
-    order, row, start = [], [], xy[by_y[0], 1]
+    order: list[list[int]] = []
+    row: list[int] = []
+    start = xy[by_y[0], 1]
     for i in by_y:
         if xy[i, 1] - start > tol:
             order.append(row)
             row, start = [], xy[i, 1]
         row.append(i)
     order.append(row)
-    route, row_of = [], []
+    route: list[int] = []
+    row_of: list[int] = []
     for r, members in enumerate(order):
         members = sorted(members, key=lambda i: xy[i, 0], reverse=bool(r % 2))
         route += members

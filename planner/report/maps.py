@@ -23,7 +23,7 @@ def _region_colours(edges: np.ndarray, regions: np.ndarray) -> np.ndarray:
     """A shade index (0-3) per luminaire such that neighbouring regions differ where possible."""
     import networkx as nx
 
-    adjacency = nx.Graph()
+    adjacency: nx.Graph[int] = nx.Graph()
     adjacency.add_nodes_from(range(int(regions.max()) + 1))
     for u, v in edges:
         if regions[u] != regions[v]:
@@ -38,7 +38,7 @@ def render_map(plan: Plan, path: str | Path) -> None:
     xy = plan.layout.xy
     ids, regions, odd = plan.assignment.ids, plan.assignment.regions, plan.graph.odd
     lo, hi = xy.min(axis=0), xy.max(axis=0)
-    lengths = [d for *_, d in plan.graph.graph.edges(data="length")]
+    lengths = [d["length"] for *_, d in plan.graph.graph.edges(data=True)]
     pitch = float(np.median(lengths)) if lengths else 1.0
     pad = max(pitch, 0.5)
     span = np.maximum(hi - lo + 2 * pad, 1.0)
@@ -59,12 +59,12 @@ def render_map(plan: Plan, path: str | Path) -> None:
     edges = plan.graph.edges
     if len(edges):
         segs = np.stack([xy[edges[:, 0]], xy[edges[:, 1]]], axis=1)
-        ax.add_collection(LineCollection(segs, colors="0.6", linewidths=0.5, zorder=2))
+        ax.add_collection(LineCollection(list(segs), colors="0.6", linewidths=0.5, zorder=2))
     marker_pt = max(2.0, 0.7 * pitch * inch_per_m * 72)  # marker diameter [pt]
     paper = plan.assignment.scheme == "paper"
-    ax.scatter(*xy[odd].T, s=marker_pt**2, c="0.15", edgecolors="black", zorder=3,
+    ax.scatter(xy[odd, 0], xy[odd, 1], s=marker_pt**2, c="0.15", edgecolors="black", zorder=3,
                label="odd class" + (" (odd IDs)" if paper else ""))
-    ax.scatter(*xy[~odd].T, s=marker_pt**2, c="white", edgecolors="black", zorder=3,
+    ax.scatter(xy[~odd, 0], xy[~odd, 1], s=marker_pt**2, c="white", edgecolors="black", zorder=3,
                label="even class" + (" (even IDs)" if paper else ""))
     font_pt = min(10.0, 0.42 * marker_pt)
     if len(xy) <= LABEL_LIMIT and font_pt >= 3.0:
@@ -105,6 +105,7 @@ def render_coverage(plan: Plan, path: str | Path) -> None:
     from planner.verify.verify import AMBIGUOUS, DECODABLE
 
     v = plan.verification
+    assert v is not None  # drawn only for a verified plan
     xy = plan.layout.xy
     pos = v.position[:, :2]
     lo = np.minimum(pos.min(axis=0), xy.min(axis=0)) - COVERAGE_BIN_M
@@ -121,10 +122,10 @@ def render_coverage(plan: Plan, path: str | Path) -> None:
     cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
     mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
     fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)
-    ax.scatter(*xy.T, s=12, facecolors="none", edgecolors="0.35", linewidths=0.6, label="luminaire")
+    ax.scatter(xy[:, 0], xy[:, 1], s=12, facecolors="none", edgecolors="0.35", linewidths=0.6, label="luminaire")
     amb = v.status == AMBIGUOUS
     if amb.any():
-        ax.scatter(*pos[amb].T, marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
+        ax.scatter(pos[amb, 0], pos[amb, 1], marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
     ax.set_title(
         f"{Path(plan.layout.source_path).name}: {plan.assignment.scheme} scheme, {v.poses} poses, "
         f"{100 * v.coverage:.1f} % decodable, {v.count(AMBIGUOUS)} ambiguous", fontsize=10)
@@ -143,6 +144,7 @@ def render_error(plan: Plan, path: str | Path) -> None:
     Dark is bad (large error); squares where no sampled pose gave a position are light grey.
     """
     acc = plan.accuracy
+    assert acc is not None  # drawn only for a plan with an error map
     ex, ey, med, p90 = acc.cells()
     finite = p90[np.isfinite(p90)]
     top = float(finite.max()) if len(finite) else 1.0
@@ -155,7 +157,7 @@ def render_error(plan: Plan, path: str | Path) -> None:
     xy = plan.layout.xy
     for ax, grid, title in ((axes[0], med, "median"), (axes[1], p90, "90th percentile")):
         mesh = ax.pcolormesh(ex, ey, grid.T * scale, cmap=cmap, vmin=0, vmax=top * scale, shading="flat")
-        ax.scatter(*xy.T, s=8, facecolors="none", edgecolors="0.5", linewidths=0.5)
+        ax.scatter(xy[:, 0], xy[:, 1], s=8, facecolors="none", edgecolors="0.5", linewidths=0.5)
         ax.set_title(f"{title} error per {acc.summary()['cell_m']:g} m square", fontsize=9)
         ax.set_xlabel("x [m]")
         ax.set_aspect("equal")

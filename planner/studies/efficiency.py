@@ -12,15 +12,15 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from planner.codes.assignment import assign_paper, bits_for, pair_lower_bound
+from planner.defaults import PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 from planner.errors import InputError
 from planner.graph import build_graph
 from planner.layout.model import Layout, Luminaire
 from planner.pipeline import PlanOptions, make_plan
-from planner.defaults import PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 
 PAPER_PRINTED = {32: (5, 4), 256: (8, 6), 512: (9, 6)}
 """The paper's printed figures per luminaire count: (naive bits, the scheme's bits) (section 2.2)."""
@@ -98,6 +98,7 @@ def table_row(layout: Layout, name: str = "") -> TableRow:
     paper = assign_paper(xy, graph)
     plan = make_plan(layout, PlanOptions(error_poses_per_m2=0))
     a = plan.assignment
+    assert plan.considered is not None  # make_plan always records the schemes it considered
     printed = PAPER_PRINTED.get(n, (None, None))
     return TableRow(n, name or layout.source_path, bits_for(n), paper.bits, pair_lower_bound(graph)[1], a.bits,
                     a.scheme, a.lower_bound_bits, dict(plan.considered), printed[0], printed[1],
@@ -142,6 +143,7 @@ def curve_row(n: int, *, window: bool, paper: bool = True, pitch_m: float = PITC
         plan = make_plan(layout, PlanOptions(scheme="window", error_poses_per_m2=0))
         seconds["window"] = time.perf_counter() - t0
         window_bits, window_bound = plan.assignment.bits, plan.assignment.lower_bound_bits
+        assert plan.considered is not None  # make_plan always records the schemes it considered
         ambiguous = plan.considered["window"]["ambiguous_poses"]
     return CurveRow(n, bits_for(n), bound, paper_bits, window_bits, window_bound, ambiguous, seconds)
 
@@ -173,6 +175,8 @@ def site_figures(doc: dict, where: str) -> dict:
     considered = doc.get("schemes_considered")
     if not isinstance(considered, dict):
         raise InputError(f"{where}: 'schemes_considered' is missing or not a mapping; write the plan with vlp-plan")
-    source = doc.get("source") if isinstance(doc.get("source"), dict) else {}
+    source = doc.get("source")
+    if not isinstance(source, dict):
+        source = {}
     return {"plan": where, "source": source.get("file"), "luminaires": len(doc["luminaires"]),
             "scheme": doc.get("scheme"), **{k: code[k] for k in SITE_FIELDS}, "schemes_considered": considered}

@@ -60,7 +60,7 @@ class Modulation:
     codewords: tuple[int, ...] | None = None  # word -> ID is index + 1; None: ID = word + 1
 
     @classmethod
-    def from_plan(cls, doc: dict) -> "Modulation":
+    def from_plan(cls, doc: dict) -> Modulation:
         from planner.codes.check_bits import check_code
 
         mod, code = doc["modulation"], doc["code"]
@@ -244,10 +244,21 @@ def decode_frame(image: np.ndarray, camera: Camera, modulation: Modulation, *,
 def read_blobs(blobs: list[Blob], camera: Camera) -> list[int]:
     """Indices of the blobs whose ID was read, nearest the image centre first (the paper's order)."""
     read = [k for k, b in enumerate(blobs) if b.id is not None]
-    return sorted(read, key=lambda k: math.hypot(blobs[k].ellipse.cx - camera.cx_px, blobs[k].ellipse.cy - camera.cy_px))
+    return sorted(read, key=lambda k: _off_centre(blobs[k], camera))
+
+
+def _read(blob: Blob) -> tuple[int, Ellipse]:
+    """A read blob's ID and ellipse (an ID is only read from a blob with an ellipse)."""
+    assert blob.id is not None and blob.ellipse is not None
+    return blob.id, blob.ellipse
+
+
+def _off_centre(blob: Blob, camera: Camera) -> float:
+    ellipse = _read(blob)[1]
+    return math.hypot(ellipse.cx - camera.cx_px, ellipse.cy - camera.cy_px)
 
 
 def snapshot(blobs: list[Blob], camera: Camera) -> Snapshot:
     """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first."""
-    order = read_blobs(blobs, camera)
-    return Snapshot(camera, [blobs[k].id for k in order], [blobs[k].ellipse for k in order])
+    read = [_read(blobs[k]) for k in read_blobs(blobs, camera)]
+    return Snapshot(camera, [led_id for led_id, _ in read], [ellipse for _, ellipse in read])

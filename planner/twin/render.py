@@ -109,7 +109,7 @@ def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate
     n = len(xyz)
     phase = rng.uniform(0.0, [len(c) for c in chips]) if n else np.zeros(0)
     gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
-    img = np.full((height, width), sensor.dark_dn, np.float32)
+    img: np.ndarray = np.full((height, width), sensor.dark_dn, np.float32)  # float32 (cv2's blur keeps it)
     in_front = project_discs_at(position[None], rotation[None], xyz[None], radii[None], camera)["in_front"][0]
     centres, shapes, ok = centre_and_shape(disc_dual_conic(position, rotation, xyz, radii, camera))
     drawn = []

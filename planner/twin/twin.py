@@ -15,17 +15,18 @@ window is unique): the twin checks the pixels, not the plan's coverage.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 
 from planner.camera import Camera, Poses, disc_dual_conic, project_discs_at
-from planner.twin.render import Frame, Sensor, render_frame
+from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from planner.ellipse import centre_and_shape
 from planner.errors import InputError, PlannerError
 from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
 from planner.twin.receiver import Blob, Modulation, decode_frame, read_blobs, snapshot
-from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
+from planner.twin.render import Frame, Sensor, render_frame
 
 STAGES = ("blobs", "ids", "identify", "position")
 
@@ -45,7 +46,7 @@ class Twin:
     outline: list | None = None
 
     @classmethod
-    def from_plan(cls, doc: dict, sensor: Sensor = Sensor()) -> "Twin":
+    def from_plan(cls, doc: dict, sensor: Sensor = Sensor()) -> Twin:
         if not doc.get("modulation") or any("frame" not in e for e in doc["luminaires"]):
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
@@ -71,6 +72,18 @@ class PoseResult:
     @property
     def ok(self) -> bool:
         return self.stage == ""
+
+
+class _Counted(TypedDict):
+    """The fields of a :class:`PoseResult` that :func:`grade` knows before it tries to locate."""
+
+    position: np.ndarray
+    angles_deg: tuple[float, float, float]
+    seen: int
+    found: int
+    read: int
+    misread: int
+    blobs: list[Blob]
 
 
 def _truth(twin: Twin, position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -103,7 +116,7 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
     found = len(set(owner.values()) & set(whole.tolist()))
     wrong = [(b, owner[b]) for b in owner if blobs[b].id is not None and blobs[b].id != twin.site.ids[owner[b]]]
     read = sum(1 for b in owner if owner[b] in set(whole.tolist()) and blobs[b].id == twin.site.ids[owner[b]])
-    base = dict(position=position, angles_deg=tuple(angles_deg), seen=len(whole), found=found, read=read,
+    base = _Counted(position=position, angles_deg=tuple(angles_deg), seen=len(whole), found=found, read=read,
                 misread=len(wrong), blobs=blobs)
     misread = "; ".join(f"{twin.site.names[i]} (ID {twin.site.ids[i]}) read as {blobs[b].id}" for b, i in wrong)
     if found < 3:

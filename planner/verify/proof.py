@@ -42,8 +42,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.camera import Camera
-from planner.errors import PlanningError
 from planner.codes.rivals import triples_of_pairs
+from planner.errors import PlanningError
 from planner.verify.window_set import SAME_HEIGHT_M, empty_triangles, may_be_decoded
 from planner.verify.windows import twice_signed_area
 

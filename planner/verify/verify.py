@@ -18,11 +18,19 @@ import numpy as np
 
 from planner.camera import Camera, Poses
 from planner.codes.rivals import find_rivals, longest_side, site_triples
-from planner.verify.proof import Proof
 from planner.defaults import INSTALL_TOLERANCE_M
+from planner.verify.proof import Proof
 from planner.verify.window_set import window_superset
-from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseWindows, WindowSet, canonical_windows, \
-    find_windows, sample_poses, working_area
+from planner.verify.windows import (
+    CONGRUENCE_TOLERANCE_M,
+    POSES_PER_M2,
+    PoseWindows,
+    WindowSet,
+    canonical_windows,
+    find_windows,
+    sample_poses,
+    working_area,
+)
 
 # Pose status codes, as in ``Verification.status``.
 DECODABLE, AMBIGUOUS, COLLINEAR, TOO_FEW = 0, 1, 2, 3
@@ -55,7 +63,7 @@ class WindowSetCheck:
         return self.complete and not self.conflicts
 
     def summary(self, names: list[str], limit: int = 5) -> dict:
-        out = {
+        out: dict[str, object] = {
             "rule": "spindle, axis disc and empty triangle" if self.complete else "empty triangle",
             "max_side_m": round(self.max_side_m, 4),
             "max_side_from": "proof" if self.complete else "pose samples",
@@ -82,7 +90,7 @@ def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_si
     With a complete ``proof`` (:func:`planner.verify.proof.prove_window_set`) its triangles
     are checked; otherwise those the empty-triangle rule allows up to ``max_side_m``.
     """
-    if proof is not None and proof.complete:
+    if proof is not None and proof.triangles is not None:  # a complete proof
         tri = proof.triangles
         max_side_m = longest_side(tri, xyz)
     else:
@@ -179,7 +187,7 @@ class Observation:
     """
 
     position: np.ndarray
-    windows_per_pose: "PoseWindows"
+    windows_per_pose: PoseWindows
     windows: WindowSet
     per_m2: float
     seed: int

@@ -45,7 +45,7 @@ class Faults:
     seed: int = 0
 
     @classmethod
-    def parse(cls, spec: str) -> "Faults":
+    def parse(cls, spec: str) -> Faults:
         """From ``"corrupt=0.001,drop=0,reset=0.01,power=0.01,stall=0.01,stall_s=0.5,seed=3"`` (any subset)."""
         values: dict = {}
         for item in filter(None, (part.strip() for part in spec.split(","))):

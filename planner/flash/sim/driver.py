@@ -18,9 +18,31 @@ from dataclasses import dataclass
 from planner.errors import InputError, UsageError
 from planner.firmware.render import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
 from planner.flash.sim.memory import ERASED, HEADER_BYTES, RECORD_BYTES, CommitRecord, Flash, PowerCut, StagingHeader
-from planner.flash.wire import (ANY_ADDRESS, BEGIN_REPLY, BEGIN_REQUEST, CAP_AB_SLOTS, CAP_HMAC, CAP_RESUME, COMMIT_REPLY,
-                   COMMIT_REQUEST, FLAG_ERROR, FLAG_RESPONSE, PROTOCOL_VERSION, VERIFY_REPLY, WRITE_HEAD,
-                   WRITE_REPLY, Command, Deframer, Hello, Packet, Status, WireError, decode, encode, error_payload)
+from planner.flash.wire import (
+    ANY_ADDRESS,
+    BEGIN_REPLY,
+    BEGIN_REQUEST,
+    CAP_AB_SLOTS,
+    CAP_HMAC,
+    CAP_RESUME,
+    COMMIT_REPLY,
+    COMMIT_REQUEST,
+    FLAG_ERROR,
+    FLAG_RESPONSE,
+    PROTOCOL_VERSION,
+    VERIFY_REPLY,
+    WRITE_HEAD,
+    WRITE_REPLY,
+    Command,
+    Deframer,
+    Hello,
+    Packet,
+    Status,
+    WireError,
+    decode,
+    encode,
+    error_payload,
+)
 
 __all__ = ["Flash", "PowerCut", "SimulatedDriver", "DriverStats"]
 

@@ -31,6 +31,7 @@ through to the file at once, so a killed process keeps exactly what was programm
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import zlib
@@ -65,7 +66,7 @@ class CommitRecord:
         return body + _CRC.pack(zlib.crc32(body))
 
     @classmethod
-    def unpack(cls, raw: bytes) -> "CommitRecord | None":
+    def unpack(cls, raw: bytes) -> CommitRecord | None:
         """The record, or None if its magic or CRC is wrong (erased, torn by a power cut)."""
         body, (crc,) = raw[:_RECORD.size], _CRC.unpack(raw[_RECORD.size:RECORD_BYTES])
         magic, counter, length, version, sha = _RECORD.unpack(body)
@@ -84,7 +85,7 @@ class StagingHeader:
         return body + _CRC.pack(zlib.crc32(body))
 
     @classmethod
-    def unpack(cls, raw: bytes) -> "StagingHeader | None":
+    def unpack(cls, raw: bytes) -> StagingHeader | None:
         body, (crc,) = raw[:_HEADER.size], _CRC.unpack(raw[_HEADER.size:HEADER_BYTES])
         magic, slot, length, version, sha = _HEADER.unpack(body)
         ok = magic == HEADER_MAGIC and zlib.crc32(body) == crc and slot in (1, 2)
@@ -106,7 +107,7 @@ class Flash:
         self.path = Path(path) if path is not None else None
         self.bytes_written = 0  # erased + programmed bytes over this object's life
         self._budget: int | None = None
-        self._file = None
+        self._file: io.BufferedRandom | None = None
         if self.path is not None:
             self._memory = self._open_file(self.path)
         else:

@@ -30,7 +30,7 @@ import urllib.parse
 
 import serial
 from serial import SerialBase, SerialException
-from serial.serialutil import PortNotOpenError, to_bytes
+from serial.serialutil import PortNotOpenError, to_bytes  # type: ignore[attr-defined]  # to_bytes: not in types-pyserial
 
 from planner.flash.sim.bus import Faults, SimBus, SimConfigError, make_bus
 from planner.flash.wire import Command, WireError, decode
@@ -93,10 +93,10 @@ class Serial(SerialBase):
     def open(self) -> None:
         if self.is_open:
             raise SerialException("port is already open")
-        if self._port is None:
+        if self.port is None:
             raise SerialException("port must be configured before it can be used")
-        self.bus = bus_from_url(self._port)
-        query = urllib.parse.parse_qs(urllib.parse.urlsplit(self._port).query)
+        self.bus = bus_from_url(self.port)
+        query = urllib.parse.parse_qs(urllib.parse.urlsplit(self.port).query)
         self._paced = query.get("paced", ["0"])[-1] == "1"
         self._line_free = 0.0
         self._rx.clear()
@@ -157,7 +157,7 @@ class Serial(SerialBase):
         """Up to ``size`` bytes, waiting at most ``timeout`` [s] (None: until a pending answer arrives)."""
         if not self.is_open:
             raise PortNotOpenError()
-        deadline = None if self._timeout is None else time.monotonic() + self._timeout
+        deadline = None if self.timeout is None else time.monotonic() + self.timeout
         while True:
             upcoming = self._arrive()
             if len(self._rx) >= size:
@@ -177,10 +177,10 @@ class Serial(SerialBase):
         data = to_bytes(data)
         now = time.monotonic()
         if self._paced:  # the bytes take 10 bit times each on the line, both ways; the driver programs
-            now = self._line_free = max(now, self._line_free) + len(data) * 10 / self._baudrate
+            now = self._line_free = max(now, self._line_free) + len(data) * 10 / self.baudrate
         for delay_s, answer in self.bus.send(data):
             if self._paced:
-                delay_s += self._driver_time_s(answer) + len(answer) * 10 / self._baudrate
+                delay_s += self._driver_time_s(answer) + len(answer) * 10 / self.baudrate
             if delay_s > 0:
                 self._later.append((now + delay_s, answer))
             else:
@@ -193,7 +193,9 @@ class Serial(SerialBase):
             packet = decode(answer.rstrip(b"\x00"))
         except WireError:
             return 0.0
-        blocks = {Command.WRITE: 1, Command.COMMIT: 2}.get(packet.command, 0)
+        per_command: dict[int, int] = {Command.WRITE: 1, Command.COMMIT: 2}
+        blocks = per_command.get(packet.command, 0)
+        assert self.bus is not None  # write() checked it
         driver = next((d for d in self.bus.drivers if d.address == packet.address), None)
         return blocks * (driver.block_write_us if driver else 0) * 1e-6
 
