@@ -8,12 +8,12 @@ drawing reproducibly. ``python tests/dxf_factory.py`` rewrites the bundled examp
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import ezdxf
 import numpy as np
 from ezdxf.document import Drawing
-
 
 from planner.layout.dxf_annotate import dxf_bytes, fixed_metadata
 
