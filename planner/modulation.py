@@ -27,6 +27,7 @@ from planner.camera import Camera, Poses
 from planner.defaults import DRIVER_MAX_HZ
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
+from planner.layout.model import area_m2
 from planner.verify.windows import find_windows, sample_poses, working_area
 
 FLICKER_HZ = 200.0
@@ -84,8 +85,7 @@ def image_rows(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: Cam
 def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, seed: int = 0) -> float:
     """Rows of the smallest LED image in any window over sampled poses (the farthest working distance)."""
     area = working_area(xyz[:, :2], outline)
-    x, y = area[:, 0], area[:, 1]
-    floor = max(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))), 1e-6)
+    floor = max(area_m2(area), 1e-6)
     poses = sample_poses(area, camera, per_m2=min(400.0, TIMING_POSES / floor), seed=seed)
     win = find_windows(poses, xyz, radii, camera)
     ok = win.covered

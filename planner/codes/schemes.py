@@ -23,15 +23,11 @@ from planner.codes.assignment import Assignment, bits_for, tile_regions
 from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, site_triples
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
+from planner.layout.model import area_m2
 from planner.verify.proof import Proof
 from planner.verify.verify import Verification, classify, design_windows, observe
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
-
-
-def _polygon_area(p: np.ndarray) -> float:
-    x, y = p[:, 0], p[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
 
 REPAIR_ROUNDS = 6
 """Passes over the check samples; each pass adds the windows they found and repairs the IDs."""
@@ -157,8 +153,8 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
 
     n = len(xyz)
     area = working_area(xyz[:, :2], outline)
-    area_m2 = max(_polygon_area(area), 1e-6)
-    design_density = min(max(5 * per_m2, DESIGN_PER_M2), max(DESIGN_MAX_POSES / area_m2, 2 * per_m2))
+    floor_m2 = max(area_m2(area), 1e-6)
+    design_density = min(max(5 * per_m2, DESIGN_PER_M2), max(DESIGN_MAX_POSES / floor_m2, 2 * per_m2))
     design = design_windows(xyz, radii, outline, camera, per_m2=design_density, seed=seed + 1,
                             tolerance_m=tolerance_m)
     windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)

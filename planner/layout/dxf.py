@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf_units import Figures, choose_unit
-from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
+from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
 
 __all__ = ["read_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
 
@@ -257,10 +257,6 @@ def _closed_points(entity) -> list[Vec3]:
     return points if closed and len(points) >= 3 else []
 
 
-def _area(points: list[tuple[float, float]]) -> float:
-    xy = np.asarray(points)
-    x, y = xy[:, 0], xy[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def _clusters(xy_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
@@ -367,7 +363,7 @@ def read_dxf(
         raise InputError(f"{where}: the model space is empty{damaged}; export the plan in model space, not only in a layout")
     scan = _Scan(path.name, selector)
     _walk(scan, msp, None, None, ())
-    outline = max(scan.outlines, key=_area, default=None)
+    outline = max(scan.outlines, key=area_m2, default=None)
     if not scan.parts and not (allow_outline_only and outline is not None):
         hint = " (or --leds N to fill the room outline)" if outline is not None else ""
         raise InputError(

@@ -208,3 +208,10 @@ def fill_outline(
     if surplus:
         desc += f", {surplus} surplus site(s) left empty"
     return lums, desc
+
+
+def area_m2(polygon: np.ndarray | list[tuple[float, float]]) -> float:
+    """Area of a simple polygon (N x 2) [m] [m2] (shoelace formula)."""
+    xy = np.asarray(polygon, dtype=float)
+    x, y = xy[:, 0], xy[:, 1]
+    return float(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))

@@ -181,7 +181,8 @@ def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, m
                   per_m2: float = ERROR_POSES_PER_M2, seed: int = 0, noise_px: float = NOISE_PX) -> SiteAccuracy:
     """Error map of ``method`` over a site: poses sampled as the verification samples them,
     ``per_m2`` of floor but at most :data:`ERROR_MAX_POSES`."""
-    from planner.verify.windows import area_m2, sample_poses, working_area
+    from planner.layout.model import area_m2
+    from planner.verify.windows import sample_poses, working_area
 
     area = working_area(xyz[:, :2], outline)
     floor = max(area_m2(area), 1e-6)

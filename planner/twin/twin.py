@@ -152,8 +152,9 @@ def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg,
 
 def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
     """``count`` poses, drawn as the verification draws them, where the plan is decodable."""
+    from planner.layout.model import area_m2
     from planner.verify.verify import DECODABLE, classify, observe_poses
-    from planner.verify.windows import area_m2, sample_poses, working_area
+    from planner.verify.windows import sample_poses, working_area
 
     xyz = twin.site.xyz
     area = working_area(xyz[:, :2], twin.outline)

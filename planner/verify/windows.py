@@ -20,6 +20,7 @@ from scipy.stats import qmc
 
 from planner.camera import Camera, Poses, project_discs
 from planner.defaults import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
+from planner.layout.model import area_m2
 
 CANDIDATES = 24
 """LEDs examined per pose: those nearest the point where the optical axis meets the ceiling."""
@@ -43,10 +44,6 @@ def working_area(xy: np.ndarray, outline) -> np.ndarray:
         return np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]])
 
 
-def area_m2(polygon: np.ndarray) -> float:
-    """Area of a simple polygon (N x 2) [m] [m2] (shoelace formula)."""
-    x, y = polygon[:, 0], polygon[:, 1]
-    return float(0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
 
 
 def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2, seed: int = 0) -> Poses:
