@@ -222,17 +222,20 @@ class _Problem:
         """
         K, wi, ks = self.K, self.inc_w[us], np.arange(self.K, dtype=np.int64)
         tp = lab[us][:, None]  # u's own label, at position p of each of its windows
-        if not self.any_sym:  # the digit of u in each window's code is replaced
-            wt = self.inc_wt[us]
-            return (codes[wi] - tp * wt)[..., None] + ks * wt[..., None]
-        p, t, sym = self.inc_p[us], lab[self.w[wi]], self.sym[wi]
+        wt = self.inc_wt[us]  # the digit of u in each window's code is replaced (pads: weight 0, code -1)
+        cand = (codes[wi] - tp * wt)[..., None] + ks * wt[..., None]
+        if not self.any_sym:
+            return cand
+        i, d = np.nonzero(self.sym[wi])  # 3-fold symmetric windows take their smallest rotation
+        p, t, tp = self.inc_p[us][i, d], lab[self.w[wi[i, d]]], tp[i]
         best = None
         for r in range(3):
-            enc = (t[..., r] * K + t[..., (r + 1) % 3]) * K + t[..., (r + 2) % 3]
+            enc = (t[:, r] * K + t[:, (r + 1) % 3]) * K + t[:, (r + 2) % 3]
             weight = K ** (2 - (p - r) % 3)
-            cand = (enc - tp * weight)[..., None] + ks * weight[..., None]
-            best = cand if best is None else np.where(sym[..., None], np.minimum(best, cand), best)
-        return np.where((wi < self.M)[..., None], best + self.off[wi][..., None], -1)
+            c = (enc[:, None] - tp * weight[:, None]) + ks * weight[:, None]
+            best = c if best is None else np.minimum(best, c)
+        cand[i, d] = best + self.off[wi[i, d]][:, None]
+        return cand
 
     def in_conflict(self, m: int, code: int, A: _Counts, P: _Counts) -> bool:
         """Triple ``m`` (at key ``code``) shares its key with an active triple, or is active and
@@ -297,7 +300,7 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
     pairs, listed = _pairs(codes[:-1], act[:-1])
     todo = np.flatnonzero(listed).tolist()  # holds every triple in a conflicting pair
     best, best_lab = pairs, lab.copy()
-    three = np.arange(3)
+    three, ks = np.arange(3), np.arange(K)
     step = last = 0
     stall = max(STALL_MIN, int(STALL_SHARE * max_steps))
     while pairs > 0 and step < max_steps and todo and step - last <= stall:
@@ -317,14 +320,18 @@ def _focused_search(prob: _Problem, lab: np.ndarray, rng: np.random.Generator, m
         # terms are the same for every label and cancel in delta
         others_a, others_p = A.many(C), P.many(C)
         for i in range(3):  # minus u's own windows now at each candidate key (sorted look-up)
-            for counts, mine in ((others_a, act[wi[i]]), (others_p, ~act[wi[i]])):
-                now_at = np.sort(codes[wi[i]][mine])
-                counts[i] -= np.searchsorted(now_at, C[i], "right") - np.searchsorted(now_at, C[i], "left")
-        slot_act = act[wi][..., None]
-        cost = (others_a + slot_act * others_p).sum(axis=1)
+            by_code = np.argsort(codes[wi[i]], kind="stable")
+            now_at = codes[wi[i]][by_code]
+            act_before = np.zeros(len(by_code) + 1, np.int64)  # active windows before each sorted position
+            np.cumsum(act[wi[i]][by_code], out=act_before[1:])
+            lo, hi = np.searchsorted(now_at, C[i], "left"), np.searchsorted(now_at, C[i], "right")
+            mine_a = act_before[hi] - act_before[lo]
+            others_a[i] -= mine_a
+            others_p[i] -= hi - lo - mine_a
+        slot_act = act[wi]
+        cost = (others_a + slot_act[..., None] * others_p).sum(axis=1)
         order = np.argsort(C, axis=1)
-        Cs = np.take_along_axis(C, order, axis=1)
-        As = np.take_along_axis(np.broadcast_to(slot_act, C.shape), order, axis=1)
+        Cs, As = C[three[:, None, None], order, ks], slot_act[three[:, None, None], order]
         cost = cost + ((Cs[:, 1:] == Cs[:, :-1]) & (As[:, 1:] | As[:, :-1])).sum(axis=1)
         now = lab[us]
         delta = cost - cost[three, now][:, None]

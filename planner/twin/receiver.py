@@ -95,27 +95,36 @@ def _background(image: np.ndarray) -> tuple[float, float]:
 
 
 def _rim_points(roi: np.ndarray, own: np.ndarray, threshold: float, level: float) -> np.ndarray:
-    """Sub-pixel rim points (x, y) of a blob's lit rows, in ROI coordinates."""
-    points = []
-    widths = own.sum(axis=1)
-    for r in np.flatnonzero(widths):
-        cols = np.flatnonzero(own[r])
-        row = roi[r].astype(np.float32)
-        inner = row[cols[0]:cols[-1] + 1]
-        lit = inner[inner > threshold]
-        if len(lit) < 3:
-            continue
-        half = level + 0.5 * (float(np.median(lit)) - level)
-        s0 = max(0, cols[0] - 4)
-        seg = row[s0:cols[-1] + 5]
-        above = np.flatnonzero(seg > half)
-        if len(above) < 2 or above[0] == 0 or above[-1] == len(seg) - 1:
-            continue  # the crossing is outside the ROI: no sub-pixel edge
-        a, b = int(above[0]), int(above[-1])  # seg[a - 1] and seg[b + 1] are at or below half
-        left = s0 + a - 1 + (half - seg[a - 1]) / (seg[a] - seg[a - 1])
-        right = s0 + b + (seg[b] - half) / (seg[b] - seg[b + 1])
-        points += [(left, r), (right, r)]
-    return np.array(points, float).reshape(-1, 2)
+    """Sub-pixel rim points (x, y) of a blob's lit rows, in ROI coordinates (all rows at once)."""
+    rows = np.flatnonzero(own.any(axis=1))
+    width = roi.shape[1]
+    own_rows, vals = own[rows], roi[rows].astype(np.float32)
+    first = own_rows.argmax(axis=1)
+    last = width - 1 - own_rows[:, ::-1].argmax(axis=1)
+    col = np.arange(width)
+    lit = (col >= first[:, None]) & (col <= last[:, None]) & (vals > threshold)
+    n = lit.sum(axis=1)
+    keep = n >= 3
+    rows, vals, first, last, lit, n = rows[keep], vals[keep], first[keep], last[keep], lit[keep], n[keep]
+    ordered = np.sort(np.where(lit, vals, np.inf), axis=1)  # each row's lit values first, ascending
+    at = np.arange(len(rows))
+    median = (ordered[at, (n - 1) // 2] + ordered[at, n // 2]) / np.float32(2)  # the middle value, or the two middle
+    half = (level + 0.5 * (median.astype(float) - level)).astype(np.float32)
+    s0, s1 = np.maximum(0, first - 4), np.minimum(width, last + 5)  # each row's segment [s0, s1)
+    above = (col >= s0[:, None]) & (col < s1[:, None]) & (vals > half[:, None])
+    a = above.argmax(axis=1)
+    b = width - 1 - above[:, ::-1].argmax(axis=1)
+    # at least two crossings, both inside the segment (else the edge is outside the ROI)
+    ok = (above.sum(axis=1) >= 2) & (a > s0) & (b < s1 - 1)
+    rows, vals, half, a, b = rows[ok], vals[ok], half[ok], a[ok], b[ok]
+    at = np.arange(len(rows))
+    below_a, at_a, at_b, below_b = vals[at, a - 1], vals[at, a], vals[at, b], vals[at, b + 1]
+    left = (a - 1) + (half - below_a) / (at_a - below_a)  # float32 fractions, float64 positions
+    right = b + (at_b - half) / (at_b - below_b)
+    # where the segment starts at the ROI's column 0 the positions have always been float32 sums: kept bit for bit
+    s32 = s0[ok] == 0
+    left[s32], right[s32] = left[s32].astype(np.float32), right[s32].astype(np.float32)
+    return np.stack([np.column_stack([left, rows]), np.column_stack([right, rows])], axis=1).reshape(-1, 2)
 
 
 def _row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: float) -> np.ndarray:
@@ -124,20 +133,20 @@ def _row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: flo
     cx, cy = ellipse.cx - x0, ellipse.cy - y0
     half_h = math.sqrt(max((ellipse.shape @ ellipse.shape)[1, 1], 0.0))
     rows = np.arange(max(0, math.ceil(cy - half_h + margin)), min(roi.shape[0], math.floor(cy + half_h - margin) + 1))
+    dy = rows - cy
+    # q00 dx^2 + 2 q01 dx dy + q11 dy^2 = 1
+    a, b, c = q[0, 0], 2 * q[0, 1] * dy, q[1, 1] * dy * dy - 1
+    disc = b * b - 4 * a * c
+    root = np.sqrt(np.where(disc > 0, disc, 0.0))
+    lo, hi = (-b - root) / (2 * a) + cx, (-b + root) / (2 * a) + cx
+    mid, half = (lo + hi) / 2, CHORD_SHARE * (hi - lo) / 2
+    c0 = np.maximum(0, np.ceil(mid - half)).astype(int)
+    c1 = np.minimum(roi.shape[1] - 1, np.floor(mid + half)).astype(int)
+    ok = (disc > 0) & (c1 - c0 >= 1)
+    sums = np.concatenate([np.zeros((roi.shape[0], 1), np.int64), np.cumsum(roi, axis=1, dtype=np.int64)], axis=1)
+    r, c0, c1 = rows[ok], c0[ok], c1[ok]
     levels = np.full(len(rows), np.nan)
-    for k, r in enumerate(rows):
-        dy = r - cy
-        # q00 dx^2 + 2 q01 dx dy + q11 dy^2 = 1
-        a, b, c = q[0, 0], 2 * q[0, 1] * dy, q[1, 1] * dy * dy - 1
-        disc = b * b - 4 * a * c
-        if disc <= 0:
-            continue
-        root = math.sqrt(disc)
-        lo, hi = (-b - root) / (2 * a) + cx, (-b + root) / (2 * a) + cx
-        mid, half = (lo + hi) / 2, CHORD_SHARE * (hi - lo) / 2
-        c0, c1 = max(0, math.ceil(mid - half)), min(roi.shape[1] - 1, math.floor(mid + half))
-        if c1 - c0 >= 1:
-            levels[k] = float(roi[r, c0:c1 + 1].mean())
+    levels[ok] = (sums[r, c1 + 1] - sums[r, c0]) / (c1 - c0 + 1)
     return levels
 
 
