@@ -28,7 +28,7 @@ import serial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planner.firmware.render import config_image  # noqa: E402
+from planner.firmware.image import config_image  # noqa: E402
 from planner.flash.flasher import flash_driver, sign_image  # noqa: E402
 from planner.flash.link import Link  # noqa: E402
 from planner.flash.sim import protocol_sim  # noqa: E402

@@ -16,7 +16,7 @@ import pytest
 import serial
 
 from planner.cli.driver_sim import console_main
-from planner.firmware.render import CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, config_image, parse_config_image
+from planner.firmware.image import CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash.sim import protocol_sim
 from planner.flash.sim.bus import Faults, SimBus, SimConfigError, make_bus
 from planner.flash.sim.driver import Flash, SimulatedDriver

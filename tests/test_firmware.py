@@ -21,19 +21,15 @@ from pathlib import Path
 import pytest
 
 from planner.errors import InputError, UsageError
-from planner.firmware.render import (
+from planner.firmware.image import (
     CRC_OFFSET,
     IMAGE_BYTES,
     SIGNATURE_OFFSET,
-    chip_timer,
     config_image,
-    default_template_dir,
-    file_name,
     pack_chips,
     parse_config_image,
-    render_firmware,
-    write_firmware,
 )
+from planner.firmware.render import chip_timer, default_template_dir, file_name, render_firmware, write_firmware
 
 HERE = Path(__file__).resolve().parent
 HARNESS = HERE / "harness"

@@ -15,7 +15,7 @@ import pytest
 import serial
 
 from planner.cli.flash import console_main
-from planner.firmware.render import SIGNATURE_OFFSET, config_image, parse_config_image
+from planner.firmware.image import SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash.flasher import flash_driver, sign_image
 from planner.flash.link import Link
 from planner.flash.sim import protocol_sim

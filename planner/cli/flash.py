@@ -125,7 +125,8 @@ def _addresses(doc: dict, path: str | None) -> dict[str, int]:
 
 
 def _image(doc_path: Path, entry: dict, digest: str, key: bytes | None) -> bytes:
-    from planner.firmware.render import file_name, parse_config_image
+    from planner.firmware.image import parse_config_image
+    from planner.firmware.render import file_name
     from planner.flash.flasher import sign_image
 
     path = doc_path.parent / "firmware" / file_name(entry["name"]) / "vlp_config.bin"

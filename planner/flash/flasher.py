@@ -17,7 +17,7 @@ import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from planner.firmware.render import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
+from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
 from planner.flash.link import Link, LinkError
 from planner.flash.wire import (
     BEGIN_REPLY,

@@ -16,7 +16,7 @@ import zlib
 from dataclasses import dataclass
 
 from planner.errors import InputError, UsageError
-from planner.firmware.render import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
+from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
 from planner.flash.sim.memory import ERASED, HEADER_BYTES, RECORD_BYTES, CommitRecord, Flash, PowerCut, StagingHeader
 from planner.flash.wire import (
     ANY_ADDRESS,
