@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from planner._files import load_yaml
 from planner.camera import Camera
 from planner.errors import InputError
-from planner.yaml_io import load_yaml
 
 _KNOWN = {"width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px", "hfov_deg", "receiver_height_m",
           "max_tilt_deg", "row_time_s"}

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 import yaml
 
 from planner import __version__
+from planner._files import load_yaml
 from planner.errors import InputError
-from planner.yaml_io import load_yaml
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.camera import Camera

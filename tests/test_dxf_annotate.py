@@ -48,7 +48,7 @@ def test_texts_at_luminaires_in_drawing_units(tmp_path, office):
         assert text.dxf.text == label(entry)
         assert 100 < text.dxf.height < 400  # mm: legible next to a 125 mm LED
     assert label(entries[1]) == "11 o R1"
-    assert not list(dest.parent.glob("*.tmp"))
+    assert [p.name for p in dest.parent.iterdir()] == [dest.name]  # no temporary file left beside it
 
 
 def test_xdata_reads_back(tmp_path, office):

@@ -71,3 +71,28 @@ def test_fill_rotated_room_aligns_to_the_walls():
 def test_fill_refuses_too_few():
     with pytest.raises(InputError, match="at least 3"):
         fill_outline(np.array([[0, 0], [1, 0], [1, 1]], dtype=float), 2, 2.5)
+
+
+def test_the_atomic_writer_leaves_the_old_file_on_failure_and_no_temporary_file(tmp_path):
+    from planner._files import write_atomically, write_text_atomically
+
+    target = tmp_path / "plan.yaml"
+    write_text_atomically(target, "old\n")
+
+    def fail(tmp):
+        tmp.write_text("half")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_atomically(target, fail)
+    assert target.read_text() == "old\n" and [p.name for p in tmp_path.iterdir()] == ["plan.yaml"]
+    write_text_atomically(target, "new\n")
+    assert target.read_text() == "new\n" and oct(target.stat().st_mode & 0o777) == oct(0o666 & ~_umask())
+
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from planner._files import write_atomically
 from planner.cli import common as cli
 from planner.defaults import CURVE_SIZES, PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 from planner.errors import UsageError
@@ -203,15 +202,10 @@ def write_plot(rows: list[CurveRow], path: Path) -> None:
     ax.grid(True, which="both", color="0.88", lw=0.5)
     ax.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.resolve().parent)
-    os.close(fd)
     try:
-        save_png(fig, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        plt.close(fig)
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        write_atomically(path, lambda tmp: save_png(fig, tmp))
+    finally:
+        plt.close(fig)  # save_png closes it too; this covers a failed write
 
 
 def console_main(argv: list[str] | None = None) -> int:

@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from planner._files import write_bytes_atomically
 from planner.cli import common as cli
 from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
@@ -101,9 +102,7 @@ def _write_png(path: Path, image: np.ndarray) -> None:
     import cv2
 
     ok, data = cv2.imencode(".png", image)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data.tobytes())
-    os.replace(tmp, path)
+    write_bytes_atomically(path, data.tobytes())
 
 
 def _pose_text(r: PoseResult) -> str:

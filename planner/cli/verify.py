@@ -15,6 +15,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from planner._files import write_atomically
 from planner.cli import common as cli
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.errors import ExitCode, UsageError
@@ -94,9 +95,7 @@ def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> N
     regions = np.array([e["region"] for e in doc["luminaires"]])
     assignment = Assignment(str(doc.get("scheme", "?")), ids, regions, 0, 0, 0, "", {})
     plan = Plan(layout, build_graph(xyz[:, :2]), assignment, camera, result)
-    tmp = path.with_name(f".{path.name}.tmp")
-    render_coverage(plan, tmp)
-    tmp.replace(path)
+    write_atomically(path, lambda tmp: render_coverage(plan, tmp))
 
 
 def console_main(argv: list[str] | None = None) -> int:

@@ -9,10 +9,10 @@ enters it.
 from __future__ import annotations
 
 import json
-import os
 from datetime import UTC, datetime
 from pathlib import Path
 
+from planner._files import write_text_atomically
 from planner.errors import InputError
 from planner.flash.flasher import FlashResult
 
@@ -54,6 +54,4 @@ class Journal:
 
     def save(self) -> None:
         doc = {"format": FORMAT, "plan_hash": self.plan_hash, "luminaires": dict(sorted(self.entries.items()))}
-        tmp = self.path.with_name(f".{self.path.name}.tmp")
-        tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-        os.replace(tmp, self.path)
+        write_text_atomically(self.path, json.dumps(doc, indent=2) + "\n")

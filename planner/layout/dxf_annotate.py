@@ -20,6 +20,7 @@ import ezdxf
 from ezdxf.document import Drawing
 from ezdxf.enums import TextEntityAlignment
 
+from planner._files import write_bytes_atomically
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.dxf import load_drawing
@@ -62,14 +63,6 @@ def dxf_bytes(doc: Drawing) -> bytes:
     return doc.encode(stream.getvalue())
 
 
-def write_bytes_atomically(dest: Path, data: bytes) -> None:
-    """Write ``data`` to ``dest`` through a temporary file, so nothing is ever half-written."""
-    tmp = dest.with_name(dest.name + ".tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, dest)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _same_file(a: Path, b: Path) -> bool:

@@ -9,10 +9,10 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+from planner._files import load_yaml
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
-from planner.yaml_io import load_yaml
 
 _FIELDS = {"name", "x", "y", "z", "radius"}
 

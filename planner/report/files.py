@@ -9,13 +9,12 @@ renamed into place, so a reader never sees half a report.
 from __future__ import annotations
 
 import base64
-import os
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from planner._files import write_atomically, write_text_atomically
 from planner.report.content import checklist, id_bill, summary, walking_order
 from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
 
@@ -32,16 +31,6 @@ MAPS = (
 """The maps the report embeds: (anchor, file in the plan's directory, heading, caption)."""
 
 
-def _atomic_write(path: Path, write) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _render_html(context: dict) -> str:
@@ -102,9 +91,9 @@ def _write_report(doc: dict, plan_hash: str, plan_dir: Path, outdir: Path, journ
     })
     outdir.mkdir(parents=True, exist_ok=True)
     html_path, pdf_path = outdir / HTML_NAME, outdir / PDF_NAME
-    _atomic_write(html_path, lambda tmp: Path(tmp).write_text(html, encoding="utf-8"))
+    write_text_atomically(html_path, html)
     sections = [(n, png, m) for _, n, png, _, m in figures]
-    _atomic_write(pdf_path, lambda tmp: write_pdf(
+    write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
         bill_lines(bill), checklist_lines(stops)))
     return [html_path, pdf_path]
