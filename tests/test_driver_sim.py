@@ -358,3 +358,5 @@ def test_driver_sim_reports_bad_arguments_in_one_line(tmp_path, capsys):
     assert console_main(["--bogus"]) == 2
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 4 and all(line.startswith("vlp-driver-sim: error: ") for line in lines)
+    assert "--key-file" in lines[0] and "cannot read" in lines[0]
+    assert "2 bytes; it must have 16 to 64" in lines[2]  # the same key rules and words as vlp-flash

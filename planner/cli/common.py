@@ -12,6 +12,7 @@ import math
 import os
 import sys
 import traceback
+from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from planner import __version__
@@ -120,6 +121,30 @@ def verification_line(v: dict) -> str:
                  "\n  proof    not proved: " + (w.get("not_proved_because") or "a triangle that may be a window "
                                                  "reads like another triple"))
     return line
+
+
+def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
+    """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
+    ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""
+    if path:
+        try:
+            raw = Path(path).read_bytes()
+        except OSError as exc:
+            raise UsageError(f"--key-file {path}: cannot read ({exc.strerror or exc})") from None
+        try:
+            key = bytes.fromhex(raw.decode("ascii"))
+        except (UnicodeDecodeError, ValueError):
+            key = raw
+    elif env and os.environ.get("VLP_SITE_KEY"):
+        try:
+            key = bytes.fromhex(os.environ["VLP_SITE_KEY"])
+        except ValueError:
+            raise UsageError("VLP_SITE_KEY must be hex digits") from None
+    else:
+        raise UsageError("no site key: give --key-file FILE" + (" or set VLP_SITE_KEY (hex)" if env else ""))
+    if not 16 <= len(key) <= 64:
+        raise UsageError(f"the site key has {len(key)} bytes; it must have 16 to 64 (hex or raw)")
+    return key
 
 
 def console_main(argv: list[str] | None, command, name: str) -> int:

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
-from planner.errors import PlannerError, UsageError
+from planner.errors import PlannerError
 
 if TYPE_CHECKING:  # the simulator loads when the command runs, not when it parses (--help at once)
     from planner.flash.sim.bus import SimBus
@@ -48,19 +48,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def read_key(path: Path) -> bytes:
-    """A site key from a file: hex digits (whitespace ignored) or the raw bytes; 16 to 64 bytes."""
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise UsageError(f"{path}: cannot read the site key ({exc.strerror or exc})") from None
-    try:
-        key = bytes.fromhex(raw.decode("ascii"))
-    except (UnicodeDecodeError, ValueError):
-        key = raw
-    if not 16 <= len(key) <= 64:
-        raise UsageError(f"{path}: site key of {len(key)} bytes; the protocol needs 16 to 64 (hex or raw)")
-    return key
 
 
 def serve(master: int, bus: SimBus, wakeup: int) -> None:
@@ -96,7 +83,7 @@ def _send(master: int, data: bytes) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; raises :class:`PlannerError` on bad arguments."""
     args = _parser().parse_args(argv)
-    key = read_key(args.key_file)
+    key = cli.site_key(args.key_file, env=False)
     from planner.flash.sim.bus import Faults, make_bus
 
     faults = Faults.parse(args.faults)

@@ -46,27 +46,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _site_key(path: str | None) -> bytes:
-    if path:
-        try:
-            raw = Path(path).read_bytes()
-        except OSError as exc:
-            raise UsageError(f"--key-file {path}: cannot read ({exc.strerror})") from None
-        text = raw.strip()
-        try:
-            key = bytes.fromhex(text.decode("ascii"))
-        except (UnicodeDecodeError, ValueError):
-            key = raw
-    elif os.environ.get("VLP_SITE_KEY"):
-        try:
-            key = bytes.fromhex(os.environ["VLP_SITE_KEY"].strip())
-        except ValueError:
-            raise UsageError("VLP_SITE_KEY must be hex digits") from None
-    else:
-        raise UsageError("no site key: give --key-file FILE or set VLP_SITE_KEY (hex)")
-    if not 16 <= len(key) <= 64:
-        raise UsageError(f"the site key has {len(key)} bytes; it must have 16 to 64")
-    return key
 
 
 def _ports_text() -> str:
@@ -160,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     doc = load_plan(doc_path)
     digest = plan_hash(doc_path.read_text("utf-8"))
     targets = _targets(doc, args)
-    key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else _site_key(args.key_file)
+    key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
     images = {e["name"]: _image(doc_path, e, digest, key) for e in targets}
     where = _addresses(doc, args.bus_map) if args.bus else {}
     if args.bus and (absent := [e["name"] for e in targets if e["name"] not in where]):
