@@ -7,10 +7,14 @@ import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
 from planner.errors import InputError
+
+if TYPE_CHECKING:
+    import jinja2
 
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml: 20x faster on large plans
 
@@ -58,3 +62,13 @@ def write_bytes_atomically(path: str | Path, data: bytes) -> None:
 def write_text_atomically(path: str | Path, text: str) -> None:
     """:func:`write_atomically` of ``text`` in UTF-8."""
     write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def jinja_environment(folder: str | Path, *, html: bool) -> jinja2.Environment:
+    """The one way templates load: from ``folder``, strict (an undefined name is an error), the
+    trailing newline kept; HTML autoescaped, C and JSON with block lines trimmed instead."""
+    import jinja2
+
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(folder)), undefined=jinja2.StrictUndefined,
+                              keep_trailing_newline=True, autoescape=html, trim_blocks=not html,
+                              lstrip_blocks=not html)

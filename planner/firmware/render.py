@@ -20,6 +20,7 @@ from pathlib import Path
 
 import jinja2
 
+from planner._files import jinja_environment
 from planner.errors import InputError, UsageError
 from planner.firmware.image import config_image, pack_chips
 
@@ -122,8 +123,7 @@ def template_context(doc: dict, lum: dict, plan_hash: str, *, mcu_clock_hz: floa
 
 
 def _environment(template_dir: Path) -> jinja2.Environment:
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(template_dir)), undefined=jinja2.StrictUndefined,
-                             keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True, autoescape=False)
+    env = jinja_environment(template_dir, html=False)
     env.filters.update(c_string=c_string, c_comment=c_comment, json=lambda v: json.dumps(v, ensure_ascii=False))
     return env
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner._files import write_atomically, write_text_atomically
+from planner._files import jinja_environment, write_atomically, write_text_atomically
 from planner.report.content import checklist, id_bill, summary, walking_order
 from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
 
@@ -36,10 +36,7 @@ MAPS = (
 def _render_html(context: dict) -> str:
     from importlib.resources import files
 
-    import jinja2
-
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(files("planner.report") / "templates")),
-                             autoescape=True, undefined=jinja2.StrictUndefined, keep_trailing_newline=True)
+    env = jinja_environment(Path(str(files("planner.report") / "templates")), html=True)
     return env.get_template("site-report.html.j2").render(**context)
 
 
