@@ -19,9 +19,15 @@ LAYOUTS = ROOT / "layouts"
     ("grid-256.yaml", 256, 6, 8, 0.25),
     ("grid-512.yaml", 512, 6, 9, 0.3333),
 ])
-def test_bundled_grids_reproduce_the_paper(tmp_path, name, leds, bits, naive, efficiency):
-    summary = main([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json",
-                    "--scheme", "paper"])
+def _summary(argv, capsys) -> dict:
+    """vlp-plan's JSON summary, run in process (main returns the exit code, 0 here)."""
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_bundled_grids_reproduce_the_paper(tmp_path, capsys, name, leds, bits, naive, efficiency):
+    summary = _summary([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json",
+                        "--scheme", "paper"], capsys)
     assert (summary["bits"], summary["naive_bits"], summary["efficiency"]) == (bits, naive, efficiency)
     doc = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
     assert doc["format"] == "vlp-plan/1" and doc["code"]["bits"] == bits
@@ -51,9 +57,9 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
 
 
-def test_outline_only_drawing_with_leds(tmp_path):
-    summary = main([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json",
-                    "--scheme", "paper"])
+def test_outline_only_drawing_with_leds(tmp_path, capsys):
+    summary = _summary([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json",
+                        "--scheme", "paper"], capsys)
     assert summary["luminaires"] == 512 and summary["bits"] == 6 and summary["verification"]["ambiguous"] == 0
     assert any("lattice" in note for note in summary["notes"])
 

@@ -180,9 +180,10 @@ def test_vlp_report_shows_the_flashing_status(site, tmp_path, monkeypatch, capsy
                        f"sim://?drivers=2&key={KEY.hex()}", "--key-file", str(site / "key")])
     assert code == 3
     capsys.readouterr()
-    result = report_cli([str(plan / "plan.yaml"), "--json"])
+    assert report_cli([str(plan / "plan.yaml"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
     assert (result["verified"], result["failed"], result["luminaires"]) == (2, 1, 32)
-    assert json.loads(capsys.readouterr().out)["journal"] == str(plan / "as-built.json")
+    assert result["journal"] == str(plan / "as-built.json")
     text = (plan / "site-report.html").read_text()
     assert text.count('class="status-verified"') == 2 and text.count('class="status-failed"') == 1
     assert "SIM-000001" in text and "did not answer" in text and KEY.hex() not in text

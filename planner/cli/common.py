@@ -12,6 +12,7 @@ import math
 import os
 import sys
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -147,15 +148,11 @@ def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
     return key
 
 
-def console_main(argv: list[str] | None, command, name: str) -> int:
+def console_main(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str) -> int:
     """Run ``command(argv)`` as the script ``name``: its exit code, or one line per error and the error's code."""
     verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
     try:
-        result = command(argv)
-        if isinstance(result, int):
-            return result
-        if isinstance(result, dict) and "exit_code" in result:
-            return int(result["exit_code"])
+        return command(argv)
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()
@@ -173,5 +170,4 @@ def console_main(argv: list[str] | None, command, name: str) -> int:
         print(f"{name}: internal error: {type(exc).__name__}: {exc} (rerun with --verbose and report it)",
               file=sys.stderr)
         return ExitCode.INPUT
-    return ExitCode.OK
 

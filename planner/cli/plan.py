@@ -87,8 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> dict:
-    """Run ``vlp-plan``; returns the summary, raises PlannerError on failure."""
+def main(argv: list[str] | None = None) -> int:
+    """Run ``vlp-plan``: the exit code (:class:`~planner.errors.ExitCode`); raises PlannerError on failure."""
     args = build_parser().parse_args(argv)
     from planner.pipeline import (
         FirmwareOptions,
@@ -160,7 +160,7 @@ def main(argv: list[str] | None = None) -> dict:
     if v is not None and v.conflicts:
         print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
               "scheme; see coverage.png and vlp-verify", file=sys.stderr)
-        summary["exit_code"] = ExitCode.CHECK_FAILED
+        return ExitCode.CHECK_FAILED
     elif v is not None and not v.clean:
         assert v.window_set is not None  # no ambiguous pose, so the window set is what is not clean
         first = v.window_set.conflicts[0]
@@ -169,8 +169,8 @@ def main(argv: list[str] | None = None) -> dict:
               f"other luminaires under the {plan.assignment.scheme} scheme, first "
               + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
               file=sys.stderr)
-        summary["exit_code"] = ExitCode.CHECK_FAILED
-    return summary
+        return ExitCode.CHECK_FAILED
+    return ExitCode.OK
 
 
 def _print_summary(s: dict) -> None:

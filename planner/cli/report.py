@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from planner.cli import common as cli
-from planner.errors import UsageError
+from planner.errors import ExitCode, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> dict:
+def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from planner.flash.journal import Journal
     from planner.plan import load_plan, plan_hash
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> dict:
         where = f"journal {journal_path}" if entries is not None else "no journal yet"
         print(f"vlp-report: wrote {', '.join(result['written'])} ({result['verified']} of {result['luminaires']} "
               f"drivers verified, {result['failed']} failed; {where})")
-    return result
+    return ExitCode.OK
 
 
 def console_main(argv: list[str] | None = None) -> int:
