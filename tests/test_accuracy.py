@@ -56,3 +56,11 @@ def test_plans_carry_an_error_map(tmp_path):
     assert acc["method"] == "paper" and acc["located"] > 20 and acc["poses"] >= acc["located"]
     assert 0 < acc["median_m"] <= acc["p90_m"] <= acc["max_m"] < 1.0
     assert (out / "error.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_vlp_accuracy_writes_no_file_unless_asked(tmp_path, monkeypatch, capsys):
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    assert console_main(["--trials", "1", "--tilts", "0", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cdf"] is None and list(tmp_path.iterdir()) == []

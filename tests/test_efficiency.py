@@ -107,3 +107,9 @@ def test_bad_sizes_is_a_one_line_usage_error(bad, tmp_path, capsys):
 def test_missing_plan_is_an_input_error(tmp_path, capsys):
     assert console_main([str(tmp_path / "none.yaml"), *SMALL, "--plot", str(tmp_path / "c.png")]) == 1
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_vlp_efficiency_writes_no_file_unless_asked(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert console_main(["--sizes", "16", "--window-up-to", "16", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["plot"] is None and list(tmp_path.iterdir()) == []

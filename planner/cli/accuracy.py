@@ -14,6 +14,7 @@ import math
 import sys
 from pathlib import Path
 
+from planner._files import write_atomically
 from planner.cli import common as cli
 from planner.defaults import NOISE_PX, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import UsageError
@@ -36,8 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--cdf", default="vlp-accuracy-cdf.png", metavar="PNG",
-                   help="where to draw the CDF plot (default vlp-accuracy-cdf.png)")
+    p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (default: no plot)")
     cli.common_flags(p, "print the figures as JSON instead of the table")
     return p
 
@@ -55,15 +55,14 @@ def _tilts(text: str) -> list[float]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     tilts = _tilts(args.tilts)
-    cdf = Path(args.cdf)
-    if not cdf.resolve().parent.is_dir():
+    cdf = Path(args.cdf) if args.cdf else None
+    if cdf is not None and not cdf.resolve().parent.is_dir():
         raise UsageError(f"--cdf {args.cdf}: directory {cdf.parent} does not exist")
     from planner.positioning.accuracy import HAND_JITTER_DEG, paper_experiment, plot_cdf, stats_cm, table3_text
 
     results = paper_experiment(tilts, args.trials, args.noise_px, args.radius, args.seed)
-    tmp = cdf.with_name(f".{cdf.name}.tmp.png")
-    plot_cdf(results, tmp)
-    tmp.replace(cdf)
+    if cdf is not None:
+        write_atomically(cdf, lambda tmp: plot_cdf(results, tmp))
     if args.json:
         print(json.dumps({
             "assumptions": {"led_radius_m": args.radius, "noise_px": args.noise_px, "trials": args.trials,
@@ -71,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
             "tilts": [{"tilt_deg": r.tilt_deg, "unusable_trials": r.unusable,
                        **{m: dict(zip(("mean_cm", "p90_cm"), (round(v, 4) for v in stats_cm(e))))
                           for m, e in r.errors.items()}} for r in results],
-            "cdf": str(cdf)}, indent=2, allow_nan=False if all(_finite(r) for r in results) else True))
+            "cdf": str(cdf) if cdf else None}, indent=2, allow_nan=False if all(_finite(r) for r in results) else True))
         return 0
     print(f"vlp-accuracy: the paper's rig in simulation; LED radius {args.radius:g} m, edge noise "
           f"{args.noise_px:g} px then whole pixels, 4000 x 3000 px at 50.4 deg, 16 points x {args.trials} trials, "
@@ -80,7 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     skipped = sum(r.unusable for r in results)
     if skipped:
         print(f"{skipped} trials saw fewer than three whole LEDs and are not counted")
-    print(f"wrote {cdf}")
+    if cdf is not None:
+        print(f"wrote {cdf}")
     return 0
 
 

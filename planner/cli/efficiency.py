@@ -65,8 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--layouts", metavar="DIR",
                    help="folder holding grid-32.yaml, grid-256.yaml and grid-512.yaml (default: the repository's "
                    "layouts/ when present, else the same 0.5 m grids built in code)")
-    p.add_argument("--plot", default="vlp-efficiency.png", metavar="PNG",
-                   help="where to draw the curve (default vlp-efficiency.png)")
+    p.add_argument("--plot", metavar="PNG", help="draw the curve into this PNG (default: no plot)")
     cli.common_flags(p, "print the figures as JSON instead of the text table")
     return p
 
@@ -77,8 +76,8 @@ def _progress(line: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    plot = Path(args.plot)
-    if not plot.resolve().parent.is_dir():
+    plot = Path(args.plot) if args.plot else None
+    if plot is not None and not plot.resolve().parent.is_dir():
         raise UsageError(f"--plot {args.plot}: directory {plot.parent} does not exist")
     folder = Path(args.layouts) if args.layouts else DEFAULT_LAYOUTS
     paths = {n: folder / name for n, name in PAPER_LAYOUTS.items()}
@@ -99,12 +98,14 @@ def main(argv: list[str] | None = None) -> int:
         layout, name = (lattice_layout(n), f"lattice-{n}") if built else (read_layout(path, n), path.name)
         table.append(table_row(layout, name))
     rows = curve(args.sizes, args.window_up_to, args.paper_up_to, progress)
-    write_plot(rows, plot)
+    if plot is not None:
+        write_plot(rows, plot)
     if args.json:
         print(json.dumps(to_json(table, rows, site, args, plot), indent=2))
     else:
         print(text_report(table, rows, site, args))
-        print(f"wrote {plot}")
+        if plot is not None:
+            print(f"wrote {plot}")
     return 0
 
 
@@ -148,7 +149,7 @@ def text_report(table: list[TableRow], rows: list[CurveRow], site: dict | None, 
     return "\n".join(out)
 
 
-def to_json(table: list[TableRow], rows: list[CurveRow], site: dict | None, args, plot: Path) -> dict:
+def to_json(table: list[TableRow], rows: list[CurveRow], site: dict | None, args, plot: Path | None) -> dict:
     """The same figures as the text report, for scripts (``null`` = not computed)."""
     return {
         "table": [{"luminaires": r.luminaires, "layout": r.layout, "naive_bits": r.naive_bits,
@@ -166,7 +167,7 @@ def to_json(table: list[TableRow], rows: list[CurveRow], site: dict | None, args
                             "window_ambiguous_poses": r.window_ambiguous_poses,
                             "seconds": {k: round(v, 2) for k, v in r.seconds.items()}} for r in rows]},
         "site": site,
-        "plot": str(plot),
+        "plot": str(plot) if plot else None,
     }
 
 
