@@ -1,4 +1,5 @@
-"""Shared test helpers: synthetic layouts, and the bundled 512 grid planned once per run."""
+"""Shared test helpers: synthetic layouts, the bundled 512 grid planned once per run, and the
+``slow`` marker (``pytest -m "not slow"`` is the fast subset: see the README)."""
 
 from pathlib import Path
 
@@ -6,6 +7,17 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+SLOW_FIXTURES = {"plan512_dir", "test_locate.py:plan_path", "test_efficiency.py:table",
+                 "test_efficiency.py:small_json", "test_accuracy.py:table3"}
+"""Fixtures that plan a large site or run a whole study (tens of seconds): every test using one is ``slow``."""
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        names = set(getattr(item, "fixturenames", ()))
+        if names & SLOW_FIXTURES or {f"{item.path.name}:{n}" for n in names} & SLOW_FIXTURES:
+            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture(scope="session")

@@ -18,6 +18,7 @@ def table3():
     return {r.tilt_deg: r for r in paper_experiment()}  # the paper's protocol: 16 points x 10 trials
 
 
+@pytest.mark.slow
 def test_every_trial_sees_three_whole_leds(table3):
     aims, azimuths = paper_test_points()
     assert len(aims) == len(azimuths) == 16 and len(PAPER_LEDS_M) == 4
@@ -48,6 +49,7 @@ def test_vlp_accuracy_prints_table3_and_draws_the_cdf(tmp_path, capsys):
     assert console_main(["--tilts", "95", "--cdf", str(cdf)]) == 2
 
 
+@pytest.mark.slow
 def test_plans_carry_an_error_map(tmp_path):
     out = tmp_path / "p"
     plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--json", "--error-poses-per-m2", "20",

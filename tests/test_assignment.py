@@ -55,6 +55,7 @@ def test_lower_bound_matches_the_counting_argument():
         assert pair_lower_bound(g)[1] == bits
 
 
+@pytest.mark.slow
 def test_large_grid_reaches_the_bound_by_construction():
     xy = grid_xy(100, 100)
     g = build_graph(xy)

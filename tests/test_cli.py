@@ -25,6 +25,7 @@ def _summary(argv, capsys) -> dict:
     return json.loads(capsys.readouterr().out)
 
 
+@pytest.mark.slow
 def test_bundled_grids_reproduce_the_paper(tmp_path, capsys, name, leds, bits, naive, efficiency):
     summary = _summary([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json",
                         "--scheme", "paper"], capsys)
@@ -45,6 +46,7 @@ def test_bundled_grids_reproduce_the_paper(tmp_path, capsys, name, leds, bits, n
     assert len(pairs) == len(set(pairs)) == 2 * leds - (16 + 32 if leds == 512 else 32 if leds == 256 else 12)
 
 
+@pytest.mark.slow
 def test_outputs_are_byte_identical_across_runs(tmp_path):
     for run in ("a", "b"):
         main([str(LAYOUTS / "dialux-office.dxf"), "-o", str(tmp_path / run), "--json"])
@@ -57,6 +59,7 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_outline_only_drawing_with_leds(tmp_path, capsys):
     summary = _summary([str(LAYOUTS / "outline-room.dxf"), "--leds", "512", "-o", str(tmp_path / "o"), "--json",
                         "--scheme", "paper"], capsys)
@@ -64,6 +67,7 @@ def test_outline_only_drawing_with_leds(tmp_path, capsys):
     assert any("lattice" in note for note in summary["notes"])
 
 
+@pytest.mark.slow
 def test_default_outdir_is_next_to_the_layout(tmp_path):
     layout = tmp_path / "site.csv"
     layout.write_text("x,y\n0,0\n1,0\n0,1\n1,1\n")
@@ -125,6 +129,7 @@ def test_refuses_to_replace_a_foreign_directory(tmp_path):
     assert (tmp_path / "docs" / "thesis.tex").read_text() == "precious"
 
 
+@pytest.mark.slow
 def test_json_summary_is_machine_readable(tmp_path):
     result = run([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json"], cwd=ROOT)
     assert result.returncode == 0
@@ -156,6 +161,7 @@ def test_bad_drawings_exit_1_with_one_line(tmp_path, make, message):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["site.dxf"]
 
 
+@pytest.mark.slow
 def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
     """Regression: ezdxf.new() allocated handles in a hash-seed dependent order."""
     import os
@@ -171,6 +177,7 @@ def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
     assert digests[0] == digests[1] == digests[2]
 
 
+@pytest.mark.slow
 def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_path):
     import numpy as np
 

@@ -68,6 +68,7 @@ def test_every_command_has_json_verbose_and_version(command):
     assert all(flag in text for flag in ("--json", "-v, --verbose", "--version"))
 
 
+@pytest.mark.slow
 def test_vlp_flash_json_is_the_only_thing_on_stdout(plan512_dir):
     plan = str(plan512_dir / "plan.yaml")
     done = subprocess.run(["vlp-flash", plan, "R01C01", "R01C02", "--bus", "--dry-run", "--json"],

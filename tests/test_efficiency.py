@@ -33,6 +33,7 @@ def small_json(tmp_path_factory):
     return json.loads(buf.getvalue()), plot
 
 
+@pytest.mark.slow
 def test_table_regenerates_the_papers_bits(table):
     assert {n: (r.naive_bits, r.paper_bits) for n, r in table.items()} == {32: (5, 4), 256: (8, 6), 512: (9, 6)}
     assert all((r.printed_naive_bits, r.printed_bits) == (r.naive_bits, r.paper_bits) for r in table.values())
@@ -58,6 +59,7 @@ def test_lattice_layout_has_n_luminaires_at_half_metre_pitch():
     assert {lum.x for lum in lay.luminaires} == {0.5 * k for k in range(8)}  # 8 columns x 6 rows
 
 
+@pytest.mark.slow
 def test_curve_computes_window_bits_only_up_to_the_limit():
     rows = curve([16, 64, 256], window_up_to=64, paper_up_to=64)
     assert [r.window_bits is None for r in rows] == [False, False, True]
@@ -68,6 +70,7 @@ def test_curve_computes_window_bits_only_up_to_the_limit():
         assert r.pair_bound_bits <= r.paper_bits
 
 
+@pytest.mark.slow
 def test_json_output_parses_and_marks_not_computed(small_json):
     doc, plot = small_json
     rows = {r["luminaires"]: r for r in doc["curve"]["rows"]}
@@ -83,6 +86,7 @@ def test_plot_is_a_png(small_json):
     assert [p.name for p in plot.parent.iterdir()] == ["curve.png"]  # no temporary file left
 
 
+@pytest.mark.slow  # the paper's table: three grids planned
 def test_text_report_says_not_computed_and_adds_the_site(tmp_path, capsys):
     out = tmp_path / "p"
     plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--json", "--no-map", "--no-firmware",
@@ -109,6 +113,7 @@ def test_missing_plan_is_an_input_error(tmp_path, capsys):
     assert capsys.readouterr().err.count("\n") == 1
 
 
+@pytest.mark.slow  # the paper's table: three grids planned
 def test_vlp_efficiency_writes_no_file_unless_asked(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert console_main(["--sizes", "16", "--window-up-to", "16", "--json"]) == 0

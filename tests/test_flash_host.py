@@ -38,6 +38,7 @@ def _booted(path: Path) -> SimulatedDriver:
     return SimulatedDriver(1, "check", KEY, Flash(4096, path))
 
 
+@pytest.mark.slow
 def test_every_512_driver_ends_verified_or_failed_and_never_corrupt(site, tmp_path, capsys):
     flash_dir = tmp_path / "flash"
     sim = subprocess.Popen([sys.executable, "-m", "planner.cli.driver_sim", "--drivers", "512", "--key-file",
@@ -98,6 +99,7 @@ def test_tampered_foreign_and_replayed_images_are_refused_and_the_driver_keeps_i
     port.close()
 
 
+@pytest.mark.slow
 def test_interrupted_batch_resumes_and_skips_finished_drivers(site, tmp_path, capsys, monkeypatch):
     plan = str(site / "p512" / "plan.yaml")
     journal = tmp_path / "j.json"

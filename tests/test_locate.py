@@ -37,6 +37,7 @@ def snapshot_at(site, position, rotation, rng=None):
     return seen, Snapshot(Camera(), [int(site.ids[k]) for k in seen.index], seen.ellipses)
 
 
+@pytest.mark.slow
 def test_ids_repeat_and_every_covered_pose_is_identified_and_located(site, plan_path):
     assert len(set(site.ids)) < len(site.ids) / 4  # a short code: each ID names many luminaires
     poses = sample_poses(working_area(site.xyz[:, :2], load_plan(plan_path)["outline"]), Camera(), per_m2=1, seed=4)

@@ -127,6 +127,7 @@ def open_in_chromium(html: Path, screenshot: Path) -> dict:
     return {"broken": broken, "images": images, "errors": errors, "headings": headings}
 
 
+@pytest.mark.slow
 def test_html_report_renders_in_chromium_with_every_image(site, tmp_path):
     html = site / "plan" / "site-report.html"
     text = html.read_text()
@@ -171,6 +172,7 @@ def test_pdf_report_renders_every_page(site, tmp_path):
         assert ink.mean() > 0.001, f"{png.name} is blank"
 
 
+@pytest.mark.slow
 def test_vlp_report_shows_the_flashing_status(site, tmp_path, monkeypatch, capsys):
     plan = tmp_path / "plan"
     shutil.copytree(site / "plan", plan)

@@ -1,8 +1,8 @@
 """Rivals: every physical triple of the site that reads like a window, checked by brute force."""
-
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -41,6 +41,7 @@ def test_site_triples_are_all_short_triples(xy, r):
     assert got == want
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(sites, st.integers(1, 4), st.floats(0.0, 0.12), st.integers(0, 100))
 def test_rivals_are_every_triple_that_reads_alike(xy, k, tol, seed):

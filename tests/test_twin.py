@@ -117,6 +117,7 @@ def test_render_and_decode_one_pose_of_the_512_plan(plan512, tmp_path, capsys):
     assert not list(tmp_path.glob(".*"))
 
 
+@pytest.mark.slow
 def test_300_covered_poses_decode_and_locate(plan512):
     """Issue 8's acceptance: >= 99 % of 300 covered poses (tilt up to 40 deg) right and within 10 cm."""
     doc = load_plan(plan512)
@@ -139,6 +140,7 @@ def test_300_covered_poses_decode_and_locate(plan512):
     assert s["error_m"]["median"] < 2e-4
 
 
+@pytest.mark.slow
 def test_batch_command_reports_stages_and_exit_code(plan512, tmp_path, capsys):
     code = console_main([str(plan512), "--poses", "6", "--jobs", "1", "--seed", "3", "--json"])
     out = json.loads(capsys.readouterr().out)

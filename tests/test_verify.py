@@ -1,5 +1,4 @@
 """Verification: windows, keys, coverage, and vlp-verify on real plans."""
-
 import itertools
 import json
 import subprocess
@@ -7,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -88,6 +88,7 @@ def test_unique_ids_never_ambiguous_and_repeated_ids_are():
     assert same.count(DECODABLE) == 0 and same.count(AMBIGUOUS) == unique.count(DECODABLE)
 
 
+@pytest.mark.slow
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(rows=st.integers(3, 8), cols=st.integers(3, 10), jitter=st.floats(0, 0.12), seed=st.integers(0, 1000))
 @example(rows=3, cols=3, jitter=0.0, seed=1)  # no triple shares a window's IDs: the empty case
@@ -131,6 +132,7 @@ def plan_cli(args, cwd=ROOT):
     return subprocess.run([sys.executable, "-m", *args], cwd=cwd, capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path):
     out = tmp_path / "out"
     made = plan_cli(["planner.cli.plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheme", "window"])
@@ -184,6 +186,7 @@ def test_working_area_is_the_hull_without_an_outline():
     assert np.all(poses.tilt_rad <= np.radians(40) + 1e-12)
 
 
+@pytest.mark.slow
 def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
     out = tmp_path / "out"
     made = plan_cli(["planner.cli.plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-report",

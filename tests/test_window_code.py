@@ -179,6 +179,7 @@ def test_incremental_counts_are_exact(inst, K, steps, seed):
     assert pairs == count_conflicts(w, shape, sym, labels, K)
 
 
+@pytest.mark.slow
 def test_deterministic_and_dict_counts_agree(monkeypatch):
     w = l_windows(8, 10)  # 252 windows in 8 labels (512 keys): some thousand steps
     shape, sym = np.zeros(len(w), int), np.array([False])

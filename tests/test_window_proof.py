@@ -1,8 +1,8 @@
 """The proved window set: its geometric tests against brute force, and soundness against exact windows."""
-
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -137,6 +137,7 @@ def test_every_exact_window_of_the_installed_site_is_in_the_proved_set(xy, insta
     assert not missing, missing[:3]
 
 
+@pytest.mark.slow
 def test_on_larger_sites_where_the_tests_exclude_most_triples_no_exact_window_is_excluded():
     """Sites large enough that most long triples are excluded (not only the small ones of the
     property test above, where most triples touch the border), the luminaires displaced."""

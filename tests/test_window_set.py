@@ -1,8 +1,8 @@
 """The window set: the empty-triangle rule holds for every window any sampled pose produces."""
-
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -32,6 +32,7 @@ sites = st.one_of(
     st.builds(poisson_xy, st.integers(20, 60), st.floats(0.4, 0.9), st.integers(0, 99)))
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(sites, st.floats(0.0, 0.05), st.integers(0, 99))
 def test_every_sampled_window_of_the_installed_site_passes_the_rule_on_the_drawing(xy, install, seed):
@@ -76,6 +77,7 @@ def test_on_a_lattice_the_set_is_the_unimodular_triangles():
     assert len(got) > len(cells)  # and the longer ones with sides 0.5, 0.71, 1.12
 
 
+@pytest.mark.slow
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(sites, st.integers(0, 99))
 @example(hex_xy(4, 6, 0.6), 53)  # found by this test: a window longer than any sampled one collided
