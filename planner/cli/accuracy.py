@@ -2,7 +2,7 @@
 
 Prints a table shaped like the paper's Table 3 (mean and 90 % error per tilt) with
 the paper's printed figures beside the simulated paper method and the full-perspective
-method, and draws the CDF plot (the paper's Fig. 8 and 10). Assumptions (LED radius,
+method, and with ``--cdf PNG`` draws the CDF plot (the paper's Fig. 8 and 10). Assumptions (LED radius,
 pixel noise, hand jitter) are printed with the table and can be changed by flags.
 """
 
@@ -12,7 +12,6 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 
 from planner._files import write_atomically
 from planner.cli import common as cli
@@ -55,9 +54,7 @@ def _tilts(text: str) -> list[float]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     tilts = _tilts(args.tilts)
-    cdf = Path(args.cdf) if args.cdf else None
-    if cdf is not None and not cdf.resolve().parent.is_dir():
-        raise UsageError(f"--cdf {args.cdf}: directory {cdf.parent} does not exist")
+    cdf = cli.output_file("--cdf", args.cdf)
     from planner.positioning.accuracy import HAND_JITTER_DEG, paper_experiment, plot_cdf, stats_cm, table3_text
 
     results = paper_experiment(tilts, args.trials, args.noise_px, args.radius, args.seed)

@@ -124,6 +124,17 @@ def verification_line(v: dict) -> str:
     return line
 
 
+def output_file(flag: str, value: str | None) -> Path | None:
+    """The file an option such as ``--plot PNG`` names (None if not given), checked before any work:
+    its folder must exist, else :class:`UsageError` naming the flag."""
+    if not value:
+        return None
+    path = Path(value)
+    if not path.resolve().parent.is_dir():
+        raise UsageError(f"{flag} {value}: directory {path.parent} does not exist")
+    return path
+
+
 def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
     ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""

@@ -76,9 +76,7 @@ def _progress(line: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    plot = Path(args.plot) if args.plot else None
-    if plot is not None and not plot.resolve().parent.is_dir():
-        raise UsageError(f"--plot {args.plot}: directory {plot.parent} does not exist")
+    plot = cli.output_file("--plot", args.plot)
     folder = Path(args.layouts) if args.layouts else DEFAULT_LAYOUTS
     paths = {n: folder / name for n, name in PAPER_LAYOUTS.items()}
     missing = [str(p) for p in paths.values() if not p.is_file()]

@@ -158,8 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.png and not args.pose:
         raise UsageError("--png needs --pose (a batch writes failed frames with --save-failures DIR)")
-    if args.png and not Path(args.png).resolve().parent.is_dir():
-        raise UsageError(f"--png {args.png}: directory {Path(args.png).parent} does not exist")
+    cli.output_file("--png", args.png)  # its folder must exist before any frame is rendered
     sensor = _sensor(args)
     from planner.plan import load_plan
     from planner.twin.twin import summary

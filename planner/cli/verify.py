@@ -18,7 +18,7 @@ from pathlib import Path
 from planner._files import write_atomically
 from planner.cli import common as cli
 from planner.defaults import INSTALL_TOLERANCE_M
-from planner.errors import ExitCode, UsageError
+from planner.errors import ExitCode
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,8 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.map and not Path(args.map).resolve().parent.is_dir():
-        raise UsageError(f"--map {args.map}: directory {Path(args.map).parent} does not exist")
+    map_path = cli.output_file("--map", args.map)
     import numpy as np
 
     from planner.camera import Camera
@@ -68,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
                                                          install_tolerance_m=install, proof=proof))
     summary = result.summary([e["name"] for e in lums], limit=10)
-    if args.map:
-        _write_map(doc, args.plan, xyz, radii, ids, camera, result, Path(args.map))
+    if map_path is not None:
+        _write_map(doc, args.plan, xyz, radii, ids, camera, result, map_path)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
