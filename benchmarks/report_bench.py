@@ -12,7 +12,6 @@ luminaires). Prints seconds, PDF pages and file sizes.
 from __future__ import annotations
 
 import argparse
-import copy
 import platform
 import re
 import sys
@@ -24,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from planner.pipeline import PlanOptions, make_plan, read_layout, write_outputs  # noqa: E402
-from planner.plan import load_plan  # noqa: E402
+from planner.plan_file import PlanFile, load_plan, plan_from_document  # noqa: E402
 from planner.report.files import write_report  # noqa: E402
 
 
@@ -32,11 +31,11 @@ def _pages(pdf: Path) -> int:
     return len(re.findall(rb"/Type\s*/Page\b", pdf.read_bytes()))
 
 
-def _time(doc: dict, plan_dir: Path, out: Path, label: str) -> None:
+def _time(doc: PlanFile, plan_dir: Path, out: Path, label: str) -> None:
     t0 = time.perf_counter()
     html, pdf = write_report(doc, "0" * 16, plan_dir, out)
     dt = time.perf_counter() - t0
-    print(f"{label:<28} {len(doc['luminaires']):>6} luminaires  {dt:6.2f} s  {_pages(pdf):>4} PDF pages  "
+    print(f"{label:<28} {len(doc.luminaires):>6} luminaires  {dt:6.2f} s  {_pages(pdf):>4} PDF pages  "
           f"HTML {html.stat().st_size / 1e6:5.2f} MB  PDF {pdf.stat().st_size / 1e6:5.2f} MB")
 
 
@@ -52,11 +51,12 @@ def main() -> None:
         doc = load_plan(tmp / "plan" / "plan.yaml")
         write_report(doc, "0" * 16, tmp / "plan", tmp / "warm")  # imports and font caches
         _time(doc, tmp / "plan", tmp / "r512", "grid-512")
-        span = max(e["y"] for e in doc["luminaires"]) + 0.5
-        big = copy.deepcopy(doc)
-        big["luminaires"] = [dict(e, name=f"{e['name']}-{k}", y=e["y"] + k * span)
-                             for k in range(args.tiles) for e in doc["luminaires"]]
-        big["outline"] = None
+        span = max(e.y for e in doc.luminaires) + 0.5
+        raw = doc.document()
+        raw["luminaires"] = [dict(e, name=f"{e['name']}-{k}", y=e["y"] + k * span)
+                             for k in range(args.tiles) for e in raw["luminaires"]]
+        raw["outline"] = None
+        big = plan_from_document(raw, "stacked plan")
         _time(big, tmp / "plan", tmp / "rbig", f"grid-512 x {args.tiles} (stacked)")
 
 

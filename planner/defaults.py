@@ -69,3 +69,15 @@ SENSOR_BLUR_PX = 0.8
 
 SENSOR_READ_NOISE_DN = 2.0
 """Default read noise of the twin's sensor, sigma [DN of 255]."""
+
+MAX_EXTENT_M = 10_000.0
+"""Largest plan coordinate accepted [m]: a site 20 km across is an error (usually of units), not a building."""
+
+MAX_HEIGHT_M = 100.0
+"""Highest mounting or receiver height accepted [m]."""
+
+MAX_RADIUS_M = 10.0
+"""Largest LED radius accepted [m]."""
+
+MAX_IMAGE_PX = 20_000
+"""Largest image side accepted [px] (a 200 Mpx phone sensor is 16,320 px wide)."""

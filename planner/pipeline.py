@@ -26,6 +26,7 @@ from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
+from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe, side_bound
@@ -222,10 +223,11 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         document = plan_document(plan, _sha256(source) if source.is_file() else "")
         text = dump_plan(document)
         (stage / "plan.yaml").write_text(text, encoding="utf-8")
+        written = plan_from_document(document, str(outdir / "plan.yaml"))  # what later stages will read back
         if firmware is not None and plan.modulation is not None:
             from planner.firmware.render import write_firmware
 
-            write_firmware(document, plan_hash(text), stage, template_dir=firmware.template_dir,
+            write_firmware(written, plan_hash(text), stage, template_dir=firmware.template_dir,
                            mcu_clock_hz=firmware.mcu_clock_hz, image_version=firmware.image_version)
         from planner import __version__
         from planner.layout.dxf_annotate import write_annotated_dxf
@@ -238,13 +240,14 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
 
             render_map(plan, stage / "map.png")
             if plan.verification is not None:
-                render_coverage(plan, stage / "coverage.png")
+                render_coverage(plan.verification, plan.layout.xy,
+                                f"{source.name}: {plan.assignment.scheme} scheme", stage / "coverage.png")
             if plan.accuracy is not None:
                 render_error(plan, stage / "error.png")
         if with_report:
             from planner.report.files import write_report
 
-            write_report(document, plan_hash(text), stage, stage)
+            write_report(written, plan_hash(text), stage, stage)
         names = sorted(p.name for p in stage.iterdir())
         if outdir.exists():
             old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")

@@ -15,8 +15,6 @@ from typing import TYPE_CHECKING
 import yaml
 
 from planner import __version__
-from planner._files import load_yaml
-from planner.errors import InputError
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.camera import Camera
@@ -134,24 +132,3 @@ def dump_plan(document: dict) -> str:
 def plan_hash(text: str) -> str:
     """Short hash naming a plan's content (first 16 hex digits of SHA-256)."""
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
-
-
-_REQUIRED = ("name", "x", "y", "z", "radius", "parity", "region", "id")
-
-
-def load_plan(path: str | Path) -> dict:
-    """Read and check a ``plan.yaml``; raise :class:`InputError` naming the bad field."""
-    path = Path(path)
-    doc = load_yaml(path, "no such plan file; run vlp-plan first")
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"{path}: not a {FORMAT} plan (field 'format' is {doc.get('format') if isinstance(doc, dict) else None!r})")
-    lums = doc.get("luminaires")
-    if not isinstance(lums, list) or not lums:
-        raise InputError(f"{path}: 'luminaires' must be a non-empty list")
-    for k, entry in enumerate(lums):
-        missing = [f for f in _REQUIRED if not isinstance(entry, dict) or f not in entry]
-        if missing:
-            raise InputError(f"{path}: luminaires[{k}] lacks field {missing[0]!r}")
-        if entry["parity"] not in ("odd", "even"):
-            raise InputError(f"{path}: luminaires[{k}].parity must be 'odd' or 'even'")
-    return doc

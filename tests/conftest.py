@@ -43,3 +43,18 @@ def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: f
 def hex_xy(rows: int, cols: int, pitch: float = 1.0) -> np.ndarray:
     """Staggered rows (every other row shifted half a pitch): a triangular lattice."""
     return np.array([(c * pitch + 0.5 * pitch * (r % 2), r * pitch * 0.866) for r in range(rows) for c in range(cols)])
+
+
+def minimal_plan(luminaires: list[dict], **sections):
+    """A small checked plan (as ``load_plan`` returns it) holding ``luminaires``; ``sections`` replace top-level keys."""
+    from planner.plan_file import plan_from_document
+
+    doc = {"format": "vlp-plan/1", "generator": "vlp-plan 0.1.0", "scheme": "unique",
+           "code": {"bits": 8, "max_id": 255, "naive_bits": 8, "lower_bound_bits": 8, "efficiency": 0.0,
+                    "word_bits": 8},
+           "modulation": {"line_code": "manchester", "preamble": "01110001", "chip_rate_hz": 4470.0, "frame_chips": 8,
+                          "frame_period_s": 8 / 4470, "frames_in_smallest_image": 2.0, "smallest_image_rows": 200.0,
+                          "row_time_s": 2e-5},
+           "luminaires": [{"x": 0.0, "y": 0.0, "z": 2.5, "radius": 0.1, "parity": "odd", "region": 0, **e}
+                          for e in luminaires], **sections}
+    return plan_from_document(doc, "test plan")

@@ -7,7 +7,7 @@ import pytest
 
 from planner.cli.accuracy import console_main
 from planner.cli.plan import main as plan_main
-from planner.plan import load_plan
+from planner.plan_file import load_plan
 from planner.positioning.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,9 +54,9 @@ def test_plans_carry_an_error_map(tmp_path):
     out = tmp_path / "p"
     plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--json", "--error-poses-per-m2", "20",
                "--locate-method", "paper"])
-    acc = load_plan(out / "plan.yaml")["accuracy"]
-    assert acc["method"] == "paper" and acc["located"] > 20 and acc["poses"] >= acc["located"]
-    assert 0 < acc["median_m"] <= acc["p90_m"] <= acc["max_m"] < 1.0
+    acc = load_plan(out / "plan.yaml").accuracy
+    assert acc.method == "paper" and acc.located > 20 and acc.poses >= acc.located
+    assert 0 < acc.median_m <= acc.p90_m <= acc.max_m < 1.0
     assert (out / "error.png").read_bytes()[:4] == b"\x89PNG"
 
 

@@ -27,10 +27,12 @@ def test_intrinsics_and_limits(tmp_path):
 
 
 @pytest.mark.parametrize("text,message", [
-    ("fov: 50\n", "unknown field 'fov'"),
-    ("max_tilt_deg: 85\n", "max_tilt_deg must be in [0, 80)"),
+    ("fov: 50\n", "fov: unknown field; known: width_px, height_px"),
+    ("max_tilt_deg: 85\n", "max_tilt_deg: must be less than 80"),
     ("receiver_height_m: [2, 1]\n", "receiver_height_m must be"),
-    ("hfov_deg: wide\n", "wrong type"),
+    ("hfov_deg: wide\n", "hfov_deg: must be a valid number (got 'wide')"),
+    ("width_px: 1000000000\n", "width_px: must be less than or equal to 20000"),
+    ("row_time_s: .nan\n", "row_time_s: must be a finite number"),
     ("- 1\n", "expected a mapping"),
 ])
 def test_bad_camera_files(tmp_path, text, message):

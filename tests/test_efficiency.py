@@ -9,7 +9,7 @@ from planner.cli.efficiency import console_main
 from planner.cli.plan import main as plan_main
 from planner.defaults import PAPER_LAYOUTS
 from planner.pipeline import read_layout
-from planner.studies.efficiency import curve, efficiency, lattice_layout, table_row
+from planner.studies.efficiency import curve, efficiency, lattice_layout, paper_grid, table_row
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ["--sizes", "16,64,256", "--window-up-to", "64"]
@@ -17,7 +17,17 @@ SMALL = ["--sizes", "16,64,256", "--window-up-to", "64"]
 
 @pytest.fixture(scope="module")
 def table():
-    return {n: table_row(read_layout(ROOT / "layouts" / name, n), name) for n, name in PAPER_LAYOUTS.items()}
+    """The rows exactly as vlp-efficiency asks for them: ``table_row`` caches, so the command's run is free."""
+    return {n: table_row(paper_grid(n), name) for n, name in PAPER_LAYOUTS.items()}
+
+
+@pytest.mark.parametrize("n", sorted(PAPER_LAYOUTS))
+def test_the_grids_built_in_code_are_the_bundled_layouts(n):
+    built, bundled = paper_grid(n), read_layout(ROOT / "layouts" / PAPER_LAYOUTS[n], n)
+    assert built.luminaires == bundled.luminaires and built.outline == bundled.outline
+    assert [lum.source for lum in built.luminaires] == [lum.source for lum in bundled.luminaires]
+    assert (built.unit, built.fill_height_m, built.fill_radius_m) == (bundled.unit, bundled.fill_height_m,
+                                                                      bundled.fill_radius_m)
 
 
 @pytest.fixture(scope="module")

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import minimal_plan
 from planner.errors import InputError, UsageError
 from planner.firmware.image import (
     CRC_OFFSET,
@@ -30,6 +31,7 @@ from planner.firmware.image import (
     parse_config_image,
 )
 from planner.firmware.render import chip_timer, default_template_dir, file_name, render_firmware, write_firmware
+from planner.plan_file import PlanFile
 
 HERE = Path(__file__).resolve().parent
 HARNESS = HERE / "harness"
@@ -63,10 +65,9 @@ FRAMES = {
 }
 
 
-def plan_doc(*luminaires: dict) -> dict:
-    return {"format": "vlp-plan/1", "generator": "vlp-plan 0.1.0",
-            "modulation": {"line_code": "manchester", "chip_rate_hz": 4470.0},
-            "luminaires": list(luminaires)}
+def plan_doc(*luminaires: dict) -> PlanFile:
+    """A minimal plan holding these luminaires (one stands in when none is given), checked as vlp-plan checks it."""
+    return minimal_plan(list(luminaires) or [lum("R1", 1, "01")])
 
 
 def lum(name: str, lum_id: int, chips: str, line_code: str = "manchester", rate_hz: float = 4470.0) -> dict:
@@ -275,10 +276,11 @@ def test_file_names():
 def test_colliding_or_unfit_luminaires_are_refused():
     with pytest.raises(InputError, match="share the firmware folder"):
         render_firmware(plan_doc(lum("R1", 1, "01"), lum("r1", 2, "10")), HASH)
+    unframed = {k: v for k, v in lum("R1", 1, "01").items() if k != "frame"}
     with pytest.raises(InputError, match="has no frame"):
-        render_firmware(plan_doc({"name": "R1", "id": 1}), HASH)
-    with pytest.raises(InputError, match="string of 0 and 1"):
-        render_firmware(plan_doc(lum("R1", 1, "012")), HASH)
+        render_firmware(minimal_plan([unframed], modulation=None), HASH)
+    with pytest.raises(InputError, match=r"luminaires\[0\]\.frame\.chips: must match pattern"):
+        plan_doc(lum("R1", 1, "012"))
     with pytest.raises(InputError, match="16 lowercase hex"):
         render_firmware(plan_doc(lum("R1", 1, "01")), "xyz")
     with pytest.raises(UsageError, match="whole number"):
@@ -307,17 +309,19 @@ def test_packaging_lists_every_subpackage():
 def test_vlp_plan_writes_headers_that_play_the_plans_frames(tmp_path):
     """End to end: the real planner's frames, through the bundled templates, compiled and played."""
     from planner.cli.plan import main as plan_main
-    from planner.plan import load_plan, plan_hash
+    from planner.plan import plan_hash
+    from planner.plan_file import load_plan
 
     out = tmp_path / "g32"
     plan_main([str(HERE.parent / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-map", "--json",
                "--error-poses-per-m2", "0", "--line-code", "4b6b"])
-    doc = load_plan(out / "plan.yaml")
+    plan = load_plan(out / "plan.yaml")
     digest = plan_hash((out / "plan.yaml").read_text("utf-8"))
-    for entry in (doc["luminaires"][0], doc["luminaires"][-1]):
-        folder = out / "firmware" / file_name(entry["name"])
+    for entry in (plan.luminaires[0], plan.luminaires[-1]):
+        assert entry.frame is not None
+        folder = out / "firmware" / file_name(entry.name)
         played = compile_and_run(folder, tmp_path).decode().splitlines()
-        assert played[0] == f"id {entry['id']}" and played[6] == "frame " + entry["frame"]["chips"] * 2
+        assert played[0] == f"id {entry.id}" and played[6] == "frame " + entry.frame.chips * 2
         assert f"plan {digest}" in played and "line_code 4b6b" in played
         image = parse_config_image((folder / "vlp_config.bin").read_bytes())
-        assert image["chips"] == entry["frame"]["chips"] and image["plan_hash"] == digest
+        assert image["chips"] == entry.frame.chips and image["plan_hash"] == digest

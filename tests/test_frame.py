@@ -8,7 +8,7 @@ import pytest
 from planner.errors import InputError, PlanningError
 from planner.frame import FOUR_B_SIX_B, LINE_CODES, decode_stream, frame_chips, longest_run
 from planner.modulation import choose_timing
-from planner.plan import load_plan
+from planner.plan_file import load_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -55,25 +55,25 @@ def plan_512(plan512_dir):
 
 
 def test_every_luminaire_of_the_512_plan_decodes_from_a_random_phase(plan_512):
-    mod = plan_512["modulation"]
-    code = LINE_CODES[mod["line_code"]]
-    bits = plan_512["code"]["word_bits"]
+    mod = plan_512.modulation
+    code = LINE_CODES[mod.line_code]
+    bits = plan_512.code.word_bits
     rng = np.random.default_rng(5)
-    for lum in plan_512["luminaires"]:
-        chips = lum["frame"]["chips"]
-        assert len(chips) == mod["frame_chips"] and lum["frame"]["chip_rate_hz"] == mod["chip_rate_hz"]
+    for lum in plan_512.luminaires:
+        chips = lum.frame.chips
+        assert len(chips) == mod.frame_chips and lum.frame.chip_rate_hz == mod.chip_rate_hz
         assert longest_run(chips) <= code.max_run
         phase = int(rng.integers(len(chips)))
         stream = (chips * 3)[phase:phase + 2 * len(chips)]
-        assert decode_stream(stream, bits, code) + 1 == lum["id"]
+        assert decode_stream(stream, bits, code) + 1 == lum.id
 
 
 def test_the_chip_rate_lies_within_every_limit(plan_512):
-    m = plan_512["modulation"]
-    lim = m["limits_hz"]
-    assert max(lim["flicker_min"], lim["frame_fit_min"]) <= m["chip_rate_hz"] <= min(lim["resolution_max"],
-                                                                                       lim["driver_max"])
-    assert m["frames_in_smallest_image"] >= 2 and lim["flicker_min"] >= 1000  # well above 200 Hz
+    m = plan_512.modulation
+    lim = m.limits_hz  # a key the plan reader keeps without typing it
+    assert max(lim["flicker_min"], lim["frame_fit_min"]) <= m.chip_rate_hz <= min(lim["resolution_max"],
+                                                                                  lim["driver_max"])
+    assert m.frames_in_smallest_image >= 2 and lim["flicker_min"] >= 1000  # well above 200 Hz
 
 
 @pytest.mark.parametrize("rows, row_time_s, driver_hz, numbers", [

@@ -29,6 +29,15 @@ def test_check_rejects_bad_layouts_with_one_clear_line(points, expected, message
     assert "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize("x,z,radius", [(1e6, 2.5, 0.1), (-2e4, 2.5, 0.1), (0, 1e308, 0.1), (0, -1, 0.1),
+                                         (0, 0, 0.1), (0, 2.5, 50.0)])
+def test_luminaires_no_building_holds_are_refused(x, z, radius):
+    odd = Luminaire("odd one", x, 0.0, z, radius)
+    with pytest.raises(InputError) as err:
+        check_layout(Layout(lums([(100, 100), (101, 100), (100, 101)]) + (odd,), source_path="site.dxf"))
+    assert str(err.value).startswith("site.dxf: luminaire 'odd one'") and "outside what a building holds" in str(err.value)
+
+
 def test_duplicate_names_are_refused():
     layout = Layout(tuple(Luminaire("A", x, 0, 2.5) for x in (0, 1, 2)), source_path="s.csv")
     with pytest.raises(InputError, match="'A' is used more than once"):

@@ -11,7 +11,7 @@ from planner.cli.locate import console_main
 from planner.cli.plan import main as plan_main
 from planner.ellipse import Ellipse
 from planner.errors import PositioningError
-from planner.plan import load_plan
+from planner.plan_file import load_plan
 from planner.positioning.locate import Site, Snapshot, identify, locate
 from planner.positioning.observation import observe
 from planner.verify.windows import sample_poses, working_area
@@ -40,7 +40,7 @@ def snapshot_at(site, position, rotation, rng=None):
 @pytest.mark.slow
 def test_ids_repeat_and_every_covered_pose_is_identified_and_located(site, plan_path):
     assert len(set(site.ids)) < len(site.ids) / 4  # a short code: each ID names many luminaires
-    poses = sample_poses(working_area(site.xyz[:, :2], load_plan(plan_path)["outline"]), Camera(), per_m2=1, seed=4)
+    poses = sample_poses(working_area(site.xyz[:, :2], load_plan(plan_path).outline), Camera(), per_m2=1, seed=4)
     rng = np.random.default_rng(0)
     located = 0
     for k in range(len(poses)):

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_xy, hex_xy
+from conftest import grid_xy, hex_xy, minimal_plan
 from planner.cli.flash import console_main as flash_main
 from planner.cli.plan import main as plan_main
 from planner.cli.report import console_main as report_main
@@ -65,7 +65,7 @@ def _doc(n_rows=2, n_cols=3):
     xy = grid_xy(n_rows, n_cols)
     lums = [{"name": f"L{k}", "x": float(x), "y": float(y), "id": 1 + k % 2, "parity": "odd" if k % 2 == 0 else "even",
              "region": 0} for k, (x, y) in enumerate(xy)]
-    return {"luminaires": lums}
+    return minimal_plan(lums)
 
 
 def test_id_bill_counts_every_luminaire_once():
@@ -230,10 +230,9 @@ def test_replanning_refuses_to_delete_an_as_built_journal(site, tmp_path, capsys
 def test_pdf_names_outside_the_builtin_font_fall_back_to_an_embedded_one(tmp_path):
     from planner.report.files import write_report
 
-    doc = {"source": {"file": "büro.yaml", "unit": "m"}, "scheme": "unique",
-           "code": {"bits": 2, "naive_bits": 2, "lower_bound_bits": 2, "max_id": 3},
-           "luminaires": [{"name": name, "x": float(k), "y": 0.0, "id": k + 1, "parity": "odd", "region": 0}
-                          for k, name in enumerate(["Светильник-1", "Büro-2", "L3"])]}
+    doc = minimal_plan([{"name": name, "x": float(k), "y": 0.0, "id": k + 1}
+                        for k, name in enumerate(["Светильник-1", "Büro-2", "L3"])],
+                       source={"file": "büro.yaml", "unit": "m"}, modulation=None)
     html, pdf = write_report(doc, "0" * 16, tmp_path, tmp_path)
     text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
     assert "Светильник-1" in text and "Büro-2" in text  # real text, not boxes or '?'

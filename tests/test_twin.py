@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from planner.camera import rotation_from_angles
 from planner.cli.twin import console_main
 from planner.frame import frame_chips, line_code
-from planner.plan import load_plan
+from planner.plan_file import load_plan
 from planner.twin.receiver import Modulation, chips_from_levels, decode_frame
 from planner.twin.render import Sensor, exposure_means, render_frame
 from planner.twin.twin import Twin, covered_poses, summary

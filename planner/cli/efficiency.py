@@ -23,7 +23,6 @@ from planner.plot_style import styled
 if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
     from planner.studies.efficiency import CurveRow, TableRow
 
-DEFAULT_LAYOUTS = Path(__file__).resolve().parents[2] / "layouts"
 MAX_SIZE = 10_000_000
 NOT_COMPUTED = "not computed"
 
@@ -63,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"compute the paper scheme on the curve only up to N luminaires (default {PAPER_UP_TO}; "
                    "100,000 takes about 100 s)")
     p.add_argument("--layouts", metavar="DIR",
-                   help="folder holding grid-32.yaml, grid-256.yaml and grid-512.yaml (default: the repository's "
-                   "layouts/ when present, else the same 0.5 m grids built in code)")
+                   help="read the table's grids from grid-32.yaml, grid-256.yaml and grid-512.yaml in this folder "
+                   "(default: the paper's grids built in code, the same as the bundled layouts/)")
     p.add_argument("--plot", metavar="PNG", help="draw the curve into this PNG (default: no plot)")
     cli.common_flags(p, "print the figures as JSON instead of the text table")
     return p
@@ -77,24 +76,21 @@ def _progress(line: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     plot = cli.output_file("--plot", args.plot)
-    folder = Path(args.layouts) if args.layouts else DEFAULT_LAYOUTS
-    paths = {n: folder / name for n, name in PAPER_LAYOUTS.items()}
+    paths = {n: Path(args.layouts) / name for n, name in PAPER_LAYOUTS.items()} if args.layouts else {}
     missing = [str(p) for p in paths.values() if not p.is_file()]
-    if missing and args.layouts:
+    if missing:
         raise UsageError(f"{missing[0]}: no such file; give --layouts DIR with grid-32/256/512.yaml")
     from planner.pipeline import read_layout
-    from planner.plan import load_plan
-    from planner.studies.efficiency import curve, lattice_layout, site_figures, table_row
+    from planner.plan_file import load_plan
+    from planner.studies.efficiency import curve, paper_grid, site_figures, table_row
 
-    built = bool(missing)  # an installed copy without the repository: the same grids, built in code
     site = site_figures(load_plan(args.plan), args.plan) if args.plan else None
     progress = _progress if sys.stderr.isatty() else None
     table = []
-    for n, path in paths.items():
+    for n, name in PAPER_LAYOUTS.items():
         if progress:
-            progress(f"table: {path.name} ...")
-        layout, name = (lattice_layout(n), f"lattice-{n}") if built else (read_layout(path, n), path.name)
-        table.append(table_row(layout, name))
+            progress(f"table: {name} ...")
+        table.append(table_row(read_layout(paths[n], n) if paths else paper_grid(n), name))
     rows = curve(args.sizes, args.window_up_to, args.paper_up_to, progress)
     if plot is not None:
         write_plot(rows, plot)

@@ -18,9 +18,13 @@ import os
 import re
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
 from planner.errors import ExitCode, InputError, UsageError
+
+if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
+    from planner.plan_file import Entry, PlanFile
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -76,19 +80,19 @@ def _shown_port(url: str) -> str:
     return re.sub(r"key=[^&]*", "key=<hidden>", url)
 
 
-def _targets(doc: dict, args) -> list[dict]:
-    lums = {e["name"]: e for e in doc["luminaires"]}
+def _targets(plan: PlanFile, args) -> list[Entry]:
+    lums = {e.name: e for e in plan.luminaires}
     if args.all == bool(args.names):
         raise UsageError("name the luminaires to flash, or give --all (not both)")
     missing = [n for n in args.names if n not in lums]
     if missing:
         raise UsageError(f"no luminaire {missing[0]!r} in {args.plan}")
-    return [lums[n] for n in args.names] if args.names else list(doc["luminaires"])
+    return [lums[n] for n in args.names] if args.names else list(plan.luminaires)
 
 
-def _addresses(doc: dict, path: str | None) -> dict[str, int]:
+def _addresses(plan: PlanFile, path: str | None) -> dict[str, int]:
     if not path:
-        return {e["name"]: k + 1 for k, e in enumerate(doc["luminaires"])}
+        return {e.name: k + 1 for k, e in enumerate(plan.luminaires)}
     out = {}
     try:
         with open(path, newline="", encoding="utf-8") as f:
@@ -103,12 +107,12 @@ def _addresses(doc: dict, path: str | None) -> dict[str, int]:
     return out
 
 
-def _image(doc_path: Path, entry: dict, digest: str, key: bytes | None) -> bytes:
+def _image(doc_path: Path, entry: Entry, digest: str, key: bytes | None) -> bytes:
     from planner.firmware.image import parse_config_image
     from planner.firmware.render import file_name
     from planner.flash.flasher import sign_image
 
-    path = doc_path.parent / "firmware" / file_name(entry["name"]) / "vlp_config.bin"
+    path = doc_path.parent / "firmware" / file_name(entry.name) / "vlp_config.bin"
     try:
         image = path.read_bytes()
     except OSError:
@@ -134,24 +138,25 @@ def main(argv: list[str] | None = None) -> int:
     from planner.flash.journal import Journal
     from planner.flash.link import Link
     from planner.flash.wire import ANY_ADDRESS
-    from planner.plan import load_plan, plan_hash
+    from planner.plan import plan_hash
+    from planner.plan_file import load_plan
 
-    doc = load_plan(doc_path)
+    plan = load_plan(doc_path)
     digest = plan_hash(doc_path.read_text("utf-8"))
-    targets = _targets(doc, args)
+    targets = _targets(plan, args)
     key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
-    images = {e["name"]: _image(doc_path, e, digest, key) for e in targets}
-    where = _addresses(doc, args.bus_map) if args.bus else {}
-    if args.bus and (absent := [e["name"] for e in targets if e["name"] not in where]):
+    images = {e.name: _image(doc_path, e, digest, key) for e in targets}
+    where = _addresses(plan, args.bus_map) if args.bus else {}
+    if args.bus and (absent := [e.name for e in targets if e.name not in where]):
         raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
     journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest)
     if args.dry_run:
         for e in targets:
-            skip = args.resume and journal.done(e["name"], hashlib.sha256(images[e["name"]]).hexdigest())
+            skip = args.resume and journal.done(e.name, hashlib.sha256(images[e.name]).hexdigest())
             action = "skip" if skip else "verify" if args.verify_only else "flash"
-            report.append({"name": e["name"], "id": e["id"], "address": where[e["name"]] if args.bus else None,
+            report.append({"name": e.name, "id": e.id, "address": where[e.name] if args.bus else None,
                            "action": action})
-            print(f"{e['name']:<16} id {e['id']:<6} {'address ' + str(where[e['name']]) if args.bus else 'plug in'}"
+            print(f"{e.name:<16} id {e.id:<6} {'address ' + str(where[e.name]) if args.bus else 'plug in'}"
                   f"  {'skip (journal: verified)' if skip else action}", file=say)
         if args.json:
             print(json.dumps({"plan": str(doc_path), "dry_run": True, "drivers": report}, indent=2))
@@ -165,25 +170,25 @@ def main(argv: list[str] | None = None) -> int:
     link, failed = Link(port, args.baud), []
     try:
         for k, e in enumerate(targets, 1):
-            name, image = e["name"], images[e["name"]]
+            name, image = e.name, images[e.name]
             if args.resume and journal.done(name, hashlib.sha256(image).hexdigest()):
                 print(f"[{k}/{len(targets)}] {name}: skipped (journal: verified)", file=say)
-                report.append({"name": name, "id": e["id"], "status": "skipped", "verified": True})
+                report.append({"name": name, "id": e.id, "status": "skipped", "verified": True})
                 continue
             if not args.bus:
-                answer = input(f"[{k}/{len(targets)}] plug the driver of {name} (ID {e['id']}, at x {e['x']:.2f} m, "
-                               f"y {e['y']:.2f} m) and press Enter; s skips, q quits: ").strip().lower()
+                answer = input(f"[{k}/{len(targets)}] plug the driver of {name} (ID {e.id}, at x {e.x:.2f} m, "
+                               f"y {e.y:.2f} m) and press Enter; s skips, q quits: ").strip().lower()
                 if answer == "q":
                     break
                 if answer == "s":
                     continue
             address = where.get(name, ANY_ADDRESS)
             result = flash_driver(link, address, image, verify_only=args.verify_only)
-            journal.record(name, e["id"], f"{shown}@{address}" if args.bus else shown, result)
+            journal.record(name, e.id, f"{shown}@{address}" if args.bus else shown, result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
             print(f"[{k}/{len(targets)}] {name}: driver {result.serial or '?'}: {text} ({result.seconds:.2f} s)"
                   + (f": {result.message}" if result.message else ""), file=say, flush=True)
-            report.append({"name": name, "id": e["id"], "address": address if args.bus else None,
+            report.append({"name": name, "id": e.id, "address": address if args.bus else None,
                            "serial": result.serial, "status": result.status, "verified": result.verified,
                            "seconds": round(result.seconds, 3), "message": result.message})
             if not result.verified:

@@ -22,6 +22,7 @@ from planner.errors import UsageError
 if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
     import numpy as np
 
+    from planner.plan_file import PlanFile
     from planner.positioning.locate import Site, Snapshot
 
 
@@ -64,16 +65,15 @@ def _pose(text: str, flag: str = "--simulate") -> tuple[np.ndarray, np.ndarray]:
     return np.array(vals[:3]), rotation_from_angles(*np.radians(vals[3:]))[0]
 
 
-def simulate(doc: dict, pose: str, noise_px: float, seed: int) -> dict:
+def simulate(plan: PlanFile, pose: str, noise_px: float, seed: int) -> dict:
     import numpy as np
 
-    from planner.camera import Camera
     from planner.positioning.locate import Site, Snapshot
     from planner.positioning.observation import observe
     from planner.positioning.snapshot_file import snapshot_document
 
-    site = Site.from_plan(doc)
-    camera = Camera.from_dict(doc.get("camera") or {})
+    site = Site.from_plan(plan)
+    camera = plan.camera_model()
     position, rotation = _pose(pose)
     rng = np.random.default_rng(seed) if noise_px > 0 else None
     seen = observe(position, rotation, site.xyz, site.radii, camera, rng, noise_px)
@@ -98,17 +98,17 @@ def result_document(site: Site, snap: Snapshot, found, max_residual_px: float = 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from planner.plan import load_plan
+    from planner.plan_file import load_plan
     from planner.positioning.locate import Site, locate
     from planner.positioning.snapshot_file import read_snapshot
 
-    doc = load_plan(args.plan)
+    plan = load_plan(args.plan)
     if args.simulate:
-        print(json.dumps(simulate(doc, args.simulate, args.noise_px, args.seed), indent=2))
+        print(json.dumps(simulate(plan, args.simulate, args.noise_px, args.seed), indent=2))
         return 0
     if not args.observation:
         raise UsageError("give an OBSERVATION.json to locate, or --simulate a pose (see vlp-locate --help)")
-    site, snap = Site.from_plan(doc), read_snapshot(args.observation)
+    site, snap = Site.from_plan(plan), read_snapshot(args.observation)
     found = locate(site, snap, args.method, args.max_residual_px)
     result = result_document(site, snap, found, args.max_residual_px)
     print(json.dumps(result, indent=2))

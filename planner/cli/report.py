@@ -35,12 +35,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from planner.flash.journal import Journal
-    from planner.plan import load_plan, plan_hash
+    from planner.plan import plan_hash
+    from planner.plan_file import load_plan
     from planner.report.content import checklist
     from planner.report.files import write_report
 
     plan_path = Path(args.plan)
-    doc = load_plan(plan_path)
+    plan = load_plan(plan_path)
     digest = plan_hash(plan_path.read_text("utf-8"))
     journal_path = Path(args.journal) if args.journal else plan_path.with_name("as-built.json")
     if args.journal and not journal_path.is_file():
@@ -49,12 +50,12 @@ def main(argv: list[str] | None = None) -> int:
     outdir = Path(args.outdir) if args.outdir else plan_path.parent
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a directory")
-    written = write_report(doc, digest, plan_path.parent, outdir, entries)
-    statuses = [s.status for s in checklist(doc, entries)]
+    written = write_report(plan, digest, plan_path.parent, outdir, entries)
+    statuses = [s.status for s in checklist(plan, entries)]
     result: dict[str, Any] = {
         "written": [str(p) for p in written],
         "journal": str(journal_path) if entries is not None else None,
-        "luminaires": len(doc["luminaires"]),
+        "luminaires": len(plan.luminaires),
         "verified": statuses.count("verified"),
         "failed": statuses.count("failed"),
     }

@@ -27,6 +27,7 @@ from planner.errors import ExitCode, UsageError
 if TYPE_CHECKING:  # the stages (OpenCV, SciPy) load when the command runs, not when it parses
     import numpy as np
 
+    from planner.plan_file import PlanFile
     from planner.twin.render import Sensor
     from planner.twin.twin import PoseResult
 
@@ -81,10 +82,10 @@ def _sensor(args) -> Sensor:
 _WORKER: dict = {}
 
 
-def _init(doc: dict, sensor: Sensor, tolerance_m: float) -> None:
+def _init(plan: PlanFile, sensor: Sensor, tolerance_m: float) -> None:
     from planner.twin.twin import Twin
 
-    _WORKER.update(twin=Twin.from_plan(doc, sensor), tolerance_m=tolerance_m)
+    _WORKER.update(twin=Twin.from_plan(plan, sensor), tolerance_m=tolerance_m)
 
 
 def _one(task) -> PoseResult:
@@ -111,21 +112,21 @@ def _pose_text(r: PoseResult) -> str:
     return f"({x:.2f}, {y:.2f}, {z:.2f}) m, tilt {tilt:.1f} az {az:.1f} roll {roll:.1f} deg"
 
 
-def run_batch(doc: dict, args, sensor: Sensor) -> list[PoseResult]:
+def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
     from concurrent.futures import ProcessPoolExecutor
 
     import numpy as np
 
     from planner.twin.twin import Twin, covered_poses, run_pose
 
-    twin = Twin.from_plan(doc, sensor)
+    twin = Twin.from_plan(plan, sensor)
     poses = covered_poses(twin, args.poses, args.seed)
     rotations = poses.rotation
     angles = np.degrees(np.column_stack([poses.tilt_rad, poses.azimuth_rad, poses.roll_rad]))
     tasks = [(k, args.seed, poses.position[k], rotations[k], tuple(angles[k])) for k in range(len(poses))]
     show = sys.stderr.isatty()
     results = []
-    init = (doc, sensor, args.tolerance_cm / 100)
+    init = (plan, sensor, args.tolerance_cm / 100)
     stream: Iterator[PoseResult]
     if args.jobs == 1:
         _init(*init)
@@ -160,13 +161,13 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError("--png needs --pose (a batch writes failed frames with --save-failures DIR)")
     cli.output_file("--png", args.png)  # its folder must exist before any frame is rendered
     sensor = _sensor(args)
-    from planner.plan import load_plan
+    from planner.plan_file import load_plan
     from planner.twin.twin import summary
 
-    doc = load_plan(args.plan)
+    plan = load_plan(args.plan)
     if args.pose:
-        return _single(doc, args, sensor)
-    results = run_batch(doc, args, sensor)
+        return _single(plan, args, sensor)
+    results = run_batch(plan, args, sensor)
     s = summary(results)
     failures = [{"pose": k, "stage": r.stage, "detail": r.detail, "where": _pose_text(r)}
                 for k, r in enumerate(results) if not r.ok]
@@ -194,7 +195,7 @@ def _print_batch(args, s: dict, failures: list[dict]) -> None:
         print(f"    pose {f['pose']} {f['where']}: {f['stage']}: {f['detail']}")
 
 
-def _single(doc: dict, args, sensor: Sensor) -> int:
+def _single(plan: PlanFile, args, sensor: Sensor) -> int:
     import numpy as np
 
     from planner.cli.locate import _pose
@@ -202,7 +203,7 @@ def _single(doc: dict, args, sensor: Sensor) -> int:
     from planner.twin.twin import Twin, run_pose
 
     position, rotation = _pose(args.pose, "--pose")
-    twin = Twin.from_plan(doc, sensor)
+    twin = Twin.from_plan(plan, sensor)
     angles = tuple(float(v) for v in args.pose.split(",")[3:])
     r, frame = run_pose(twin, position, rotation, angles, np.random.default_rng(args.seed), args.tolerance_cm / 100)
     if args.png:

@@ -41,22 +41,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     map_path = cli.output_file("--map", args.map)
-    import numpy as np
 
-    from planner.camera import Camera
-    from planner.plan import load_plan
+    from planner.plan_file import load_plan
     from planner.verify.proof import prove_window_set
     from planner.verify.verify import check_window_set, side_bound, verify_plan
 
-    doc = load_plan(args.plan)
-    lums = doc["luminaires"]
-    xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums], dtype=float)
-    radii = np.array([e["radius"] for e in lums], dtype=float)
-    ids = np.array([e["id"] for e in lums], dtype=np.int64)
-    camera = cli.camera_from_args(args) if args.camera else Camera.from_dict(doc.get("camera") or {})
-    result = verify_plan(xyz, radii, ids, doc.get("outline"), camera, per_m2=args.poses_per_m2, seed=args.seed,
+    plan = load_plan(args.plan)
+    xyz, radii, ids = plan.xyz, plan.radii, plan.ids
+    camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
+    result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
                          tolerance_m=args.tolerance)
-    recorded = (doc.get("verification") or {}).get("window_set") or {}
+    recorded = (plan.verification.window_set if plan.verification else None) or {}
     install = args.install_tolerance if args.install_tolerance is not None else \
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
     # The proof is made anew from the luminaires and the camera, never read from the plan; without
@@ -66,9 +61,12 @@ def main(argv: list[str] | None = None) -> int:
                 if recorded.get("max_side_from") != "proof" else 0.0)
     result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
                                                          install_tolerance_m=install, proof=proof))
-    summary = result.summary([e["name"] for e in lums], limit=10)
+    summary = result.summary(plan.names, limit=10)
     if map_path is not None:
-        _write_map(doc, args.plan, xyz, radii, ids, camera, result, map_path)
+        from planner.report.maps import render_coverage
+
+        site = f"{plan.source.get('file', Path(args.plan).name)}: {plan.scheme} scheme"
+        write_atomically(map_path, lambda tmp: render_coverage(result, xyz[:, :2], site, tmp))
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -76,25 +74,6 @@ def main(argv: list[str] | None = None) -> int:
         for group in summary["first_conflicts"] + summary["window_set"]["first_conflicts"]:
             print("  same key: " + " = ".join("(" + ", ".join(t) + ")" for t in group))
     return 0 if result.clean else ExitCode.CHECK_FAILED
-
-
-def _write_map(doc, plan_path, xyz, radii, ids, camera, result, path: Path) -> None:
-    """Coverage map of a loaded plan (rebuilds the few plan objects the map needs)."""
-    import numpy as np
-
-    from planner.codes.assignment import Assignment
-    from planner.graph import build_graph
-    from planner.layout.model import Layout, Luminaire
-    from planner.plan import Plan
-    from planner.report.maps import render_coverage
-
-    lums = tuple(Luminaire(e["name"], float(e["x"]), float(e["y"]), float(e["z"]), float(e["radius"]))
-                 for e in doc["luminaires"])
-    layout = Layout(lums, None, str(plan_path))
-    regions = np.array([e["region"] for e in doc["luminaires"]])
-    assignment = Assignment(str(doc.get("scheme", "?")), ids, regions, 0, 0, 0, "", {})
-    plan = Plan(layout, build_graph(xyz[:, :2]), assignment, camera, result)
-    write_atomically(path, lambda tmp: render_coverage(plan, tmp))
 
 
 def console_main(argv: list[str] | None = None) -> int:

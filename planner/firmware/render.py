@@ -23,6 +23,7 @@ import jinja2
 from planner._files import jinja_environment
 from planner.errors import InputError, UsageError
 from planner.firmware.image import config_image, pack_chips
+from planner.plan_file import Entry, PlanFile
 
 IMAGE_FILE = "vlp_config.bin"
 
@@ -87,38 +88,21 @@ def default_template_dir() -> Path:
     return Path(__file__).resolve().parents[2] / "firmware_templates"
 
 
-def _frame(lum: dict) -> tuple[str, str, int, str, float]:
-    """Checked (name, chips, id, line code, chip rate) of a plan entry."""
-    name = lum.get("name")
-    if not isinstance(name, str) or not name:
-        raise InputError(f"luminaire entry without a name: {lum!r}")
-    frame = lum.get("frame")
-    if not isinstance(frame, dict):
-        raise InputError(f"luminaire {name!r} has no frame: make the plan with a vlp-plan that writes frames")
-    chips, rate, code, lum_id = frame.get("chips"), frame.get("chip_rate_hz"), frame.get("line_code"), lum.get("id")
-    if not isinstance(chips, str) or not chips or set(chips) - {"0", "1"}:
-        raise InputError(f"luminaire {name!r}: frame.chips must be a non-empty string of 0 and 1")
-    if not isinstance(lum_id, int) or isinstance(lum_id, bool) or lum_id < 1:
-        raise InputError(f"luminaire {name!r}: id must be an integer >= 1, not {lum_id!r}")
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
-        raise InputError(f"luminaire {name!r}: frame.chip_rate_hz must be a positive number, not {rate!r}")
-    if not isinstance(code, str) or not code:
-        raise InputError(f"luminaire {name!r}: frame.line_code must be a name such as 'manchester'")
-    return name, chips, lum_id, code, float(rate)
-
-
-def template_context(doc: dict, lum: dict, plan_hash: str, *, mcu_clock_hz: float, image_version: int) -> dict:
+def template_context(plan: PlanFile, lum: Entry, plan_hash: str, *, mcu_clock_hz: float, image_version: int) -> dict:
     """The variables a template sees for one luminaire (docs/firmware.md lists them)."""
-    name, chips, lum_id, code, rate = _frame(lum)
+    if lum.frame is None:
+        raise InputError(f"luminaire {lum.name!r} has no frame: make the plan with a vlp-plan that writes frames")
+    chips, rate = lum.frame.chips, lum.frame.chip_rate_hz
     timer = chip_timer(rate, mcu_clock_hz)
     return {
-        "generator": str(doc.get("generator", "vlp-plan")), "plan_hash": plan_hash, "name": name,
-        "file_name": file_name(name), "id": lum_id, "chips": chips, "chip_count": len(chips),
+        "generator": plan.generator or "vlp-plan", "plan_hash": plan_hash, "name": lum.name,
+        "file_name": file_name(lum.name), "id": lum.id, "chips": chips, "chip_count": len(chips),
         "frame_bytes": list(pack_chips(chips)), "chip_rate_hz": rate, "chip_rate_millihz": round(rate * 1000),
-        "line_code": code, "mcu_clock_hz": int(mcu_clock_hz), "timer_ticks": timer.ticks,
+        "line_code": lum.frame.line_code, "mcu_clock_hz": int(mcu_clock_hz), "timer_ticks": timer.ticks,
         "timer_reload": timer.reload, "actual_chip_rate_hz": round(timer.actual_chip_rate_hz, 6),
         "chip_rate_error_ppm": round(timer.error_ppm, 3), "image_version": image_version,
-        "luminaire": lum, "modulation": doc.get("modulation") or {},
+        "luminaire": lum.model_dump(exclude_none=True),
+        "modulation": plan.modulation.model_dump(exclude_none=True) if plan.modulation else {},
     }
 
 
@@ -143,7 +127,7 @@ def _render(env: jinja2.Environment, template_dir: Path, name: str, context: dic
     raise InputError(f"{where}{f' line {line}' if line else ''}: {message}") from None
 
 
-def render_firmware(doc: dict, plan_hash: str, *, template_dir: Path | None = None, mcu_clock_hz: float = 16e6,
+def render_firmware(plan: PlanFile, plan_hash: str, *, template_dir: Path | None = None, mcu_clock_hz: float = 16e6,
                     image_version: int = 1) -> dict[str, bytes]:
     """Every luminaire's artifacts as ``{"firmware/<folder>/<file>": content}``."""
     if not re.fullmatch(r"[0-9a-f]{16}", plan_hash):
@@ -161,8 +145,8 @@ def render_firmware(doc: dict, plan_hash: str, *, template_dir: Path | None = No
     env = _environment(template_dir)
     out: dict[str, bytes] = {}
     folders: dict[str, str] = {}  # folder name (lower case) -> the luminaire it belongs to
-    for lum in doc.get("luminaires") or []:
-        ctx = template_context(doc, lum, plan_hash, mcu_clock_hz=mcu_clock_hz, image_version=image_version)
+    for lum in plan.luminaires:
+        ctx = template_context(plan, lum, plan_hash, mcu_clock_hz=mcu_clock_hz, image_version=image_version)
         other = folders.setdefault(ctx["file_name"].lower(), ctx["name"])
         if other != ctx["name"]:
             raise InputError(f"luminaires {other!r} and {ctx['name']!r} share the firmware folder "
@@ -175,10 +159,10 @@ def render_firmware(doc: dict, plan_hash: str, *, template_dir: Path | None = No
     return out
 
 
-def write_firmware(doc: dict, plan_hash: str, outdir: Path, *, template_dir: Path | None = None,
+def write_firmware(plan: PlanFile, plan_hash: str, outdir: Path, *, template_dir: Path | None = None,
                    mcu_clock_hz: float = 16e6, image_version: int = 1) -> list[Path]:
     """Write :func:`render_firmware`'s files under ``outdir`` (a staging folder); return their paths."""
-    files = render_firmware(doc, plan_hash, template_dir=template_dir, mcu_clock_hz=mcu_clock_hz,
+    files = render_firmware(plan, plan_hash, template_dir=template_dir, mcu_clock_hz=mcu_clock_hz,
                             image_version=image_version)
     paths = []
     for rel, content in files.items():

@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.path import Path as _PolygonPath
 from scipy.spatial import cKDTree
 
+from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, MAX_RADIUS_M
 from planner.errors import InputError
 
 DEFAULT_RADIUS_M = 0.1
@@ -122,6 +123,12 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     radii = np.array([lum.radius for lum in layout.luminaires])
     if not np.all(np.isfinite(xy)) or not np.all(radii > 0):
         raise InputError(f"{where}: a luminaire has a non-finite position or a radius <= 0")
+    for lum in layout.luminaires:  # the bounds plan.yaml's reader holds every plan to (planner.plan_file)
+        if max(abs(lum.x), abs(lum.y)) > MAX_EXTENT_M or not 0 < lum.z <= MAX_HEIGHT_M or lum.radius > MAX_RADIUS_M:
+            raise InputError(
+                f"{where}: luminaire {lum.name!r} at ({lum.x:g}, {lum.y:g}, {lum.z:g}) m, radius {lum.radius:g} m: "
+                f"outside what a building holds (|x|, |y| <= {MAX_EXTENT_M:g} m, 0 < z <= {MAX_HEIGHT_M:g} m, "
+                f"radius <= {MAX_RADIUS_M:g} m); check the units (--units) or the height (--height)")
     tree = cKDTree(xy)
     # many points and k=2: arrays (the stubs' return type also allows one point's scalars)
     dist, idx = cast("tuple[np.ndarray, np.ndarray]", tree.query(xy, k=2))

@@ -11,6 +11,7 @@ within ``max_residual_px``. Exactly one place must remain.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,9 @@ from planner.errors import InputError, PositioningError
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
 from planner.positioning.paper import distance_weak_perspective, locate_paper
 from planner.positioning.perspective import initial_poses, locate_perspective
+
+if TYPE_CHECKING:
+    from planner.plan_file import PlanFile
 
 SPACING_TOLERANCE = 0.35
 """Relative error allowed between a luminaire pair's spacing and its weak-perspective estimate."""
@@ -38,10 +42,8 @@ class Site:
     ids: np.ndarray
 
     @classmethod
-    def from_plan(cls, doc: dict) -> Site:
-        lums = doc["luminaires"]
-        return cls([str(e["name"]) for e in lums], np.array([[e["x"], e["y"], e["z"]] for e in lums], float),
-                   np.array([e["radius"] for e in lums], float), np.array([e["id"] for e in lums], np.int64))
+    def from_plan(cls, plan: PlanFile) -> Site:
+        return cls(plan.names, plan.xyz, plan.radii, plan.ids)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The site report's content: summary figures, the ID bill and the installers' checklist in walking order.
 
-Pure computation on a plan document (``plan.yaml`` as loaded) and, once
+Pure computation on a loaded plan (:class:`~planner.plan_file.PlanFile`) and, once
 drivers have been flashed, the as-built journal's entries; the figures are
 drawn by :mod:`planner.report.figures` and the files written by
 :mod:`planner.report.files`.
@@ -9,9 +9,12 @@ drawn by :mod:`planner.report.figures` and the files written by
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from planner.plan_file import Entry, PlanFile
 
 ROW_TOLERANCE = 0.5
 """Luminaires whose y differs from a row's first by less than this share of the pitch walk in that row."""
@@ -66,14 +69,14 @@ class BillLine:
     luminaires: tuple[str, ...]
 
 
-def id_bill(doc: dict) -> list[BillLine]:
+def id_bill(plan: PlanFile) -> list[BillLine]:
     """The ID bill: every ID used, with its class, count and luminaires (in walking order)."""
-    lums = doc["luminaires"]
-    route, _ = walking_order(np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2))
-    by_id: dict[int, list] = {}
+    lums = plan.luminaires
+    route, _ = walking_order(plan.xy)
+    by_id: dict[int, list[Entry]] = {}
     for i in route:
-        by_id.setdefault(int(lums[i]["id"]), []).append(lums[i])
-    return [BillLine(k, "/".join(sorted({e["parity"] for e in v})), len(v), tuple(e["name"] for e in v))
+        by_id.setdefault(lums[i].id, []).append(lums[i])
+    return [BillLine(k, "/".join(sorted({e.parity for e in v})), len(v), tuple(e.name for e in v))
             for k, v in sorted(by_id.items())]
 
 
@@ -108,46 +111,45 @@ def _status(entry: dict | None) -> tuple[str, str]:
     return "failed", "; ".join(s for s in (entry.get("message"), detail) if s)
 
 
-def checklist(doc: dict, journal: dict[str, dict] | None = None) -> list[Stop]:
+def checklist(plan: PlanFile, journal: dict[str, dict] | None = None) -> list[Stop]:
     """The installers' checklist: every luminaire in walking order, with its flashing status from ``journal``."""
     from planner.firmware.render import file_name
 
-    lums = doc["luminaires"]
-    xy = np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2)
-    route, rows = walking_order(xy)
+    route, rows = walking_order(plan.xy)
     journal = journal or {}
     stops = []
     for k, (i, r) in enumerate(zip(route, rows), 1):
-        e = lums[i]
-        status, detail = _status(journal.get(e["name"]))
-        stops.append(Stop(k, int(r) + 1, e["name"], float(e["x"]), float(e["y"]), int(e["id"]), e["parity"],
-                          int(e["region"]), f"firmware/{file_name(e['name'])}/", status, detail))
+        e = plan.luminaires[i]
+        status, detail = _status(journal.get(e.name))
+        stops.append(Stop(k, int(r) + 1, e.name, e.x, e.y, e.id, e.parity, e.region,
+                          f"firmware/{file_name(e.name)}/", status, detail))
     return stops
 
 
-def summary(doc: dict, stops: list[Stop]) -> list[tuple[str, str]]:
-    """The report's headline figures as (label, value) pairs, from the plan document."""
-    code, mod, ver, acc = doc["code"], doc.get("modulation"), doc.get("verification"), doc.get("accuracy")
-    regions = len({e["region"] for e in doc["luminaires"]})
+def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
+    """The report's headline figures as (label, value) pairs, from the plan."""
+    code, mod, ver, acc = plan.code, plan.modulation, plan.verification, plan.accuracy
+    regions = len(set(plan.regions.tolist()))
     rows = [
-        ("layout", f"{doc['source']['file']} ({len(doc['luminaires'])} luminaires, unit {doc['source']['unit']})"),
-        ("scheme", f"{doc['scheme']}: {code['bits']} bits per ID (naive {code['naive_bits']}, lower bound "
-                   f"{code['lower_bound_bits']}), IDs 1..{code['max_id']}, {regions} regions"),
+        ("layout", f"{plan.source.get('file', '?')} ({len(plan.luminaires)} luminaires, "
+                   f"unit {plan.source.get('unit', '?')})"),
+        ("scheme", f"{plan.scheme}: {code.bits} bits per ID (naive {code.naive_bits}, lower bound "
+                   f"{code.lower_bound_bits}), IDs 1..{code.max_id}, {regions} regions"),
     ]
     if ver:
-        rows.append(("verification", f"{100 * ver['coverage']:.1f} % of {ver['poses']} sampled poses decodable, "
-                                     f"{ver['ambiguous']} ambiguous"))
+        rows.append(("verification", f"{100 * ver.coverage:.1f} % of {ver.poses} sampled poses decodable, "
+                                     f"{ver.ambiguous} ambiguous"))
     else:
         rows.append(("verification", "not verified (--no-verify)"))
-    if acc and acc.get("located"):
-        rows.append(("expected error", f"{acc['method']} method: median {length_text(acc['median_m'])}, 90 % "
-                                       f"{length_text(acc['p90_m'])} ({acc['located']} of {acc['poses']} poses located)"))
+    if acc and acc.located and acc.median_m is not None and acc.p90_m is not None:
+        rows.append(("expected error", f"{acc.method} method: median {length_text(acc.median_m)}, 90 % "
+                                       f"{length_text(acc.p90_m)} ({acc.located} of {acc.poses} poses located)"))
     elif acc:
-        rows.append(("expected error", f"{acc['method']} method: none of {acc['poses']} sampled poses located"))
+        rows.append(("expected error", f"{acc.method} method: none of {acc.poses} sampled poses located"))
     if mod:
-        rows.append(("modulation", f"{mod['line_code']}, {mod['chip_rate_hz']:g} chips/s, {mod['frame_chips']} chips "
-                                   f"per frame ({1e3 * mod['frame_period_s']:.3f} ms), "
-                                   f"{mod['frames_in_smallest_image']:.1f} frames in the smallest LED image"))
+        rows.append(("modulation", f"{mod.line_code}, {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
+                                   f"per frame ({1e3 * mod.frame_period_s:.3f} ms), "
+                                   f"{mod.frames_in_smallest_image:.1f} frames in the smallest LED image"))
     done = sum(s.status == "verified" for s in stops)
     failed = sum(s.status == "failed" for s in stops)
     rows.append(("flashing", f"{done} of {len(stops)} drivers verified" + (f", {failed} failed" if failed else "")))

@@ -20,6 +20,8 @@ from planner.report.content import BillLine, Stop
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
 
+    from planner.plan_file import Entry, Modulation, PlanFile
+
 TIMING_LUMINAIRES = 4
 """How many luminaires (with distinct IDs) the timing diagram shows."""
 
@@ -36,13 +38,13 @@ LINE_CHARS = 170
 """Longest text line on a PDF page; longer checklist lines are cut (the HTML report has them whole)."""
 
 
-def timing_examples(doc: dict, route: np.ndarray) -> list[dict]:
+def timing_examples(plan: PlanFile, route: np.ndarray) -> list[Entry]:
     """Up to :data:`TIMING_LUMINAIRES` luminaires with distinct IDs, first met along the walking route."""
     seen, chosen = set(), []
     for i in route:
-        e = doc["luminaires"][i]
-        if e.get("frame") and e["id"] not in seen:
-            seen.add(e["id"])
+        e = plan.luminaires[i]
+        if e.frame is not None and e.id not in seen:
+            seen.add(e.id)
             chosen.append(e)
         if len(chosen) == TIMING_LUMINAIRES:
             break
@@ -50,7 +52,7 @@ def timing_examples(doc: dict, route: np.ndarray) -> list[dict]:
 
 
 @styled
-def timing_diagram(doc: dict, examples: list[dict]) -> bytes:
+def timing_diagram(mod: Modulation, examples: list[Entry]) -> bytes:
     """PNG: each example's LED drive (on/off) over a few frames, preamble shaded, with the smallest LED image's span.
 
     Time runs left to right in milliseconds; phases are aligned for reading (on
@@ -59,52 +61,51 @@ def timing_diagram(doc: dict, examples: list[dict]) -> bytes:
     """
     import matplotlib.pyplot as plt
 
-    mod = doc["modulation"]
-    chip_s = 1.0 / mod["chip_rate_hz"]
-    preamble = len(mod["preamble"])
-    image_s = mod["smallest_image_rows"] * mod["row_time_s"]
-    frames = max(TIMING_FRAMES, math.ceil(image_s / mod["frame_period_s"] + 0.25))
+    chip_s = 1.0 / mod.chip_rate_hz
+    preamble = len(mod.preamble)
+    image_s = mod.smallest_image_rows * mod.row_time_s
+    frames = max(TIMING_FRAMES, math.ceil(image_s / mod.frame_period_s + 0.25))
     fig, ax = plt.subplots(figsize=(9.0, 1.2 + 0.9 * len(examples)), layout="constrained")
     for k, e in enumerate(examples):
-        chips = e["frame"]["chips"] * frames
+        assert e.frame is not None  # timing_examples keeps luminaires with frames
+        chips = e.frame.chips * frames
         level = np.array([int(c) for c in chips] + [int(chips[-1])], float)
         t = np.arange(len(level)) * chip_s * 1e3
         base = (len(examples) - 1 - k) * 1.6
         for f in range(frames):
-            t0 = f * len(e["frame"]["chips"]) * chip_s * 1e3
+            t0 = f * len(e.frame.chips) * chip_s * 1e3
             ax.axvspan(t0, t0 + preamble * chip_s * 1e3, ymin=0, ymax=1, color="0.9", lw=0, zorder=0)
         ax.step(t, base + level, where="post", color="black", ls="-", lw=1.2)
     top = (len(examples) - 1) * 1.6 + 1.5
     ax.annotate("", xy=(0, top), xytext=(image_s * 1e3, top),
                 arrowprops={"arrowstyle": "<->", "color": "0.3", "lw": 1.0})
-    ax.text(image_s * 1e3 / 2, top + 0.1, f"smallest LED image: {mod['smallest_image_rows']:.0f} rows = "
+    ax.text(image_s * 1e3 / 2, top + 0.1, f"smallest LED image: {mod.smallest_image_rows:.0f} rows = "
             f"{image_s * 1e3:.2f} ms", ha="center", va="bottom", fontsize=8, color="0.2")
     ax.set_yticks([(len(examples) - 1 - k) * 1.6 + 0.5 for k in range(len(examples))],
-                  [f"{e['name']}\nID {e['id']}" for e in examples])
+                  [f"{e.name}\nID {e.id}" for e in examples])
     ax.set_ylim(-0.4, top + 0.7)
-    ax.set_xlim(0, frames * mod["frame_chips"] * chip_s * 1e3)
+    ax.set_xlim(0, frames * mod.frame_chips * chip_s * 1e3)
     ax.set_xlabel("time [ms]  (shaded: preamble)")
     ax.set_ylabel("LED drive per luminaire (high = on)")
-    ax.set_title(f"LED drive: {mod['line_code']} at {mod['chip_rate_hz']:g} chips/s, {mod['frame_chips']} chips "
-                 f"per frame ({mod['frame_period_s'] * 1e3:.3f} ms), preamble {mod['preamble']}")
+    ax.set_title(f"LED drive: {mod.line_code} at {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
+                 f"per frame ({mod.frame_period_s * 1e3:.3f} ms), preamble {mod.preamble}")
     return png_bytes(fig)
 
 
 @styled
-def route_figure(doc: dict, route: np.ndarray) -> bytes:
+def route_figure(plan: PlanFile, route: np.ndarray) -> bytes:
     """PNG: the installers' serpentine route over the luminaires, with stop numbers."""
     import matplotlib.pyplot as plt
 
-    lums = doc["luminaires"]
-    xy = np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2)
+    xy = plan.xy
     path = xy[route]
     span = np.maximum(np.ptp(xy, axis=0) if len(xy) else np.ones(2), 1.0) + 2.0
     inch_per_m = min(10.0 / span[0], 7.0 / span[1], 1.5)
     fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 1.0), max(4.0, span[1] * inch_per_m + 1.0)),
                            layout="constrained")
-    if doc.get("outline"):
-        ring = np.array(doc["outline"] + doc["outline"][:1], float)
-        ax.plot(*ring.T, color="black", lw=1.0)
+    ring = plan.outline_xy
+    if ring is not None:
+        ax.plot(*np.vstack([ring, ring[:1]]).T, color="black", lw=1.0)
     ax.plot(*path.T, color="0.45", lw=0.8, ls="-")
     ax.scatter(xy[:, 0], xy[:, 1], s=14, facecolors="white", edgecolors="black", linewidths=0.6, zorder=3)
     ax.scatter(path[:1, 0], path[:1, 1], s=90, marker=">", color="black", zorder=4, label="start (stop 1)")

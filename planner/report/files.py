@@ -1,6 +1,6 @@
 """Write the site report: ``site-report.html`` (self-contained) and ``site-report.pdf``.
 
-Both are made from the plan document, the maps ``vlp-plan`` drew beside it
+Both are made from the loaded plan, the maps ``vlp-plan`` drew beside it
 (``map.png``, ``coverage.png``, ``error.png``) and, once drivers have been
 flashed, the as-built journal. Each file is written to a temporary name and
 renamed into place, so a reader never sees half a report.
@@ -11,12 +11,14 @@ from __future__ import annotations
 import base64
 import warnings
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
 from planner.report.content import checklist, id_bill, summary, walking_order
 from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
+
+if TYPE_CHECKING:
+    from planner.plan_file import PlanFile
 
 HTML_NAME = "site-report.html"
 PDF_NAME = "site-report.pdf"
@@ -40,9 +42,9 @@ def _render_html(context: dict) -> str:
     return env.get_template("site-report.html.j2").render(**context)
 
 
-def write_report(doc: dict, plan_hash: str, plan_dir: str | Path, outdir: str | Path,
+def write_report(plan: PlanFile, plan_hash: str, plan_dir: str | Path, outdir: str | Path,
                  journal: dict[str, dict] | None = None) -> list[Path]:
-    """Write the HTML and PDF site report of the plan ``doc`` into ``outdir``; return their paths.
+    """Write the HTML and PDF site report of ``plan`` into ``outdir``; return their paths.
 
     ``plan_dir`` holds the maps drawn with the plan (missing ones are named in
     their place); ``journal`` maps luminaire names to as-built entries. Names in
@@ -51,32 +53,31 @@ def write_report(doc: dict, plan_hash: str, plan_dir: str | Path, outdir: str | 
     """
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"Glyph \d+ .* missing from font")
-        return _write_report(doc, plan_hash, Path(plan_dir), Path(outdir), journal)
+        return _write_report(plan, plan_hash, Path(plan_dir), Path(outdir), journal)
 
 
-def _write_report(doc: dict, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None) -> list[Path]:
+def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None) -> list[Path]:
     from planner import __version__
 
-    lums = doc["luminaires"]
-    route, _ = walking_order(np.array([[e["x"], e["y"]] for e in lums], float).reshape(-1, 2))
-    stops = checklist(doc, journal)
-    bill = id_bill(doc)
-    head = summary(doc, stops)
-    title = f"VLP site report: {doc.get('source', {}).get('file', plan_dir.name)}"
+    route, _ = walking_order(plan.xy)
+    stops = checklist(plan, journal)
+    bill = id_bill(plan)
+    head = summary(plan, stops)
+    title = f"VLP site report: {plan.source.get('file', plan_dir.name)}"
     figures = []
     for anchor, file, name, caption in MAPS:
         png = plan_dir / file
         figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
                         f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify)."))
-    if doc.get("modulation"):
-        figures.append(("timing", "Frame timing", timing_diagram(doc, timing_examples(doc, route)),
+    if plan.modulation is not None:
+        figures.append(("timing", "Frame timing", timing_diagram(plan.modulation, timing_examples(plan, route)),
                         "What each driver sends, chip by chip: its frame repeats; the receiver reads at least one "
                         "whole frame within the smallest LED image.", ""))
-    figures.append(("route", "Walking route", route_figure(doc, route),
+    figures.append(("route", "Walking route", route_figure(plan, route),
                     "The order of the checklist below: rows by increasing y, alternating direction.", ""))
     times = [e["time"] for e in (journal or {}).values() if e.get("time")]
     journal_note = f"flashing status as of {max(times)}" if times else "no drivers flashed yet"
-    generator = doc.get("generator", f"vlp-plan {__version__}")
+    generator = plan.generator or f"vlp-plan {__version__}"
     html = _render_html({
         "title": title, "generator": generator, "plan_hash": plan_hash, "journal_note": journal_note,
         "summary": head, "stops": stops, "bill": bill,

@@ -8,12 +8,16 @@ are shaded alternately behind them and labelled. Rendering is deterministic
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 from planner.plan import Plan
 from planner.plot_style import save_png, styled
+
+if TYPE_CHECKING:
+    from planner.verify.verify import Verification
 
 LABEL_LIMIT = 2000
 """Above this many luminaires, IDs are not written on the map (unreadable)."""
@@ -96,17 +100,15 @@ COVERAGE_BIN_M = 0.25
 
 
 @styled
-def render_coverage(plan: Plan, path: str | Path) -> None:
+def render_coverage(v: Verification, xy: np.ndarray, site: str, path: str | Path) -> None:
     """Write the verification's coverage map as PNG: share of decodable poses per square.
 
+    ``xy`` are the luminaires (N, 2) [m]; ``site`` begins the title (file and scheme).
     Dark is bad: black squares decode nowhere, white everywhere; ambiguous poses are
     marked with crosses, luminaires drawn as small circles.
     """
     from planner.verify.verify import AMBIGUOUS, DECODABLE
 
-    v = plan.verification
-    assert v is not None  # drawn only for a verified plan
-    xy = plan.layout.xy
     pos = v.position[:, :2]
     lo = np.minimum(pos.min(axis=0), xy.min(axis=0)) - COVERAGE_BIN_M
     hi = np.maximum(pos.max(axis=0), xy.max(axis=0)) + COVERAGE_BIN_M
@@ -127,7 +129,7 @@ def render_coverage(plan: Plan, path: str | Path) -> None:
     if amb.any():
         ax.scatter(pos[amb, 0], pos[amb, 1], marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
     ax.set_title(
-        f"{Path(plan.layout.source_path).name}: {plan.assignment.scheme} scheme, {v.poses} poses, "
+        f"{site}, {v.poses} poses, "
         f"{100 * v.coverage:.1f} % decodable, {v.count(AMBIGUOUS)} ambiguous", fontsize=10)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -14,13 +14,17 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from planner.codes.assignment import assign_paper, bits_for, pair_lower_bound
-from planner.defaults import PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
+from planner.defaults import PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 from planner.errors import InputError
 from planner.graph import build_graph
 from planner.layout.model import Layout, Luminaire
 from planner.pipeline import PlanOptions, make_plan
+
+if TYPE_CHECKING:
+    from planner.plan_file import PlanFile
 
 PAPER_PRINTED = {32: (5, 4), 256: (8, 6), 512: (9, 6)}
 """The paper's printed figures per luminaire count: (naive bits, the scheme's bits) (section 2.2)."""
@@ -44,6 +48,22 @@ def lattice_layout(n: int, pitch_m: float = PITCH_M) -> Layout:
     cols = cols if n % cols == 0 else math.ceil(math.sqrt(n))
     lums = tuple(Luminaire(f"L{k:06d}", (k % cols) * pitch_m, (k // cols) * pitch_m, 2.5) for k in range(n))
     return Layout(lums, source_path=f"lattice-{n}.yaml")
+
+
+def paper_grid(n: int, pitch_m: float = PITCH_M) -> Layout:
+    """The paper's ``n``-LED grid exactly as the bundled ``layouts/grid-<n>.yaml`` (a test holds them equal).
+
+    Built in code so that an installed copy regenerates the same table: ``R01C01``...
+    at the centres of ``pitch_m`` [m] cells in a rectangular room, 2.5 m high, 0.1 m LEDs.
+    """
+    cols = 2 ** math.ceil(math.log2(math.sqrt(n)))
+    rows = n // cols
+    name = PAPER_LAYOUTS[n]
+    lums = tuple(Luminaire(f"R{r + 1:02d}C{c + 1:02d}", (c + 0.5) * pitch_m, (r + 0.5) * pitch_m, 2.5, 0.1,
+                           {"file": name, "index": r * cols + c}) for r in range(rows) for c in range(cols))
+    w, h = cols * pitch_m, rows * pitch_m
+    return Layout(lums, ((0.0, 0.0), (w, 0.0), (w, h), (0.0, h)), f"layouts/{name}", unit_reason="stated in the file",
+                  fill_height_m=2.5, fill_radius_m=0.1)
 
 
 @dataclass(frozen=True)
@@ -161,22 +181,12 @@ def curve(sizes: list[int], window_up_to: int = WINDOW_UP_TO, paper_up_to: int =
     return rows
 
 
-SITE_FIELDS = ("bits", "naive_bits", "lower_bound_bits", "efficiency")
-
-
-def site_figures(doc: dict, where: str) -> dict:
-    """A loaded ``plan.yaml``'s own coding figures; ``InputError`` naming ``where`` if one is missing."""
-    code = doc.get("code")
-    if not isinstance(code, dict):
-        raise InputError(f"{where}: has no 'code' section; write it with vlp-plan")
-    for key in SITE_FIELDS:
-        if not isinstance(code.get(key), (int, float)) or isinstance(code.get(key), bool):
-            raise InputError(f"{where}: code.{key} is missing or not a number; write the plan with vlp-plan")
-    considered = doc.get("schemes_considered")
-    if not isinstance(considered, dict):
-        raise InputError(f"{where}: 'schemes_considered' is missing or not a mapping; write the plan with vlp-plan")
-    source = doc.get("source")
-    if not isinstance(source, dict):
-        source = {}
-    return {"plan": where, "source": source.get("file"), "luminaires": len(doc["luminaires"]),
-            "scheme": doc.get("scheme"), **{k: code[k] for k in SITE_FIELDS}, "schemes_considered": considered}
+def site_figures(plan: PlanFile, where: str) -> dict:
+    """A loaded ``plan.yaml``'s own coding figures; ``InputError`` naming ``where`` if the schemes are missing."""
+    if plan.schemes_considered is None:
+        raise InputError(f"{where}: 'schemes_considered' is missing; write the plan with vlp-plan")
+    code = plan.code
+    return {"plan": where, "source": plan.source.get("file"), "luminaires": len(plan.luminaires),
+            "scheme": plan.scheme, "bits": code.bits, "naive_bits": code.naive_bits,
+            "lower_bound_bits": code.lower_bound_bits, "efficiency": code.efficiency,
+            "schemes_considered": plan.schemes_considered}

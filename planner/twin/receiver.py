@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -35,6 +36,9 @@ from planner.ellipse import Ellipse, fit_ellipse
 from planner.errors import InputError, PositioningError
 from planner.frame import LineCode, decode_stream, line_code
 from planner.positioning.locate import Snapshot
+
+if TYPE_CHECKING:
+    from planner.plan_file import PlanFile
 
 MIN_BLOB_PX = 40
 """Smallest blob kept [px]: smaller ones are noise or LEDs too small to read."""
@@ -60,15 +64,17 @@ class Modulation:
     codewords: tuple[int, ...] | None = None  # word -> ID is index + 1; None: ID = word + 1
 
     @classmethod
-    def from_plan(cls, doc: dict) -> Modulation:
+    def from_plan(cls, plan: PlanFile) -> Modulation:
         from planner.codes.check_bits import check_code
 
-        mod, code = doc["modulation"], doc["code"]
+        mod, code = plan.modulation, plan.code
+        if mod is None:
+            raise InputError("the plan has no 'modulation'; make it again with this vlp-plan")
         words = None
-        if code.get("check_distance", 1) > 1:
-            check = check_code(code["max_id"], code["bits"], code["check_distance"])
+        if code.check_distance > 1:
+            check = check_code(code.max_id, code.bits, code.check_distance)
             words = tuple(int(w) for w in check.codewords)
-        return cls(line_code(mod["line_code"]), int(code["word_bits"]), float(mod["chip_rate_hz"]), words)
+        return cls(line_code(mod.line_code), code.word_bits, mod.chip_rate_hz, words)
 
     def id_of(self, word: int) -> int | None:
         if self.codewords is None:

@@ -15,7 +15,7 @@ window is unique): the twin checks the pixels, not the plan's coverage.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TypedDict
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -27,6 +27,9 @@ from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
 from planner.twin.receiver import Blob, Modulation, decode_frame, read_blobs, snapshot
 from planner.twin.render import Frame, Sensor, render_frame
+
+if TYPE_CHECKING:
+    from planner.plan_file import PlanFile
 
 STAGES = ("blobs", "ids", "identify", "position")
 
@@ -46,12 +49,12 @@ class Twin:
     outline: list | None = None
 
     @classmethod
-    def from_plan(cls, doc: dict, sensor: Sensor = Sensor()) -> Twin:
-        if not doc.get("modulation") or any("frame" not in e for e in doc["luminaires"]):
+    def from_plan(cls, plan: PlanFile, sensor: Sensor = Sensor()) -> Twin:
+        chips = plan.frames
+        if chips is None:
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
-        return cls(Site.from_plan(doc), [e["frame"]["chips"] for e in doc["luminaires"]],
-                   Modulation.from_plan(doc), Camera.from_dict(doc.get("camera") or {}), sensor, doc.get("outline"))
+        return cls(Site.from_plan(plan), chips, Modulation.from_plan(plan), plan.camera_model(), sensor, plan.outline)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,257 @@
+"""``plan.yaml`` read back: one typed plan, validated once, for every stage after ``vlp-plan``.
+
+:func:`load_plan` checks every field a later stage reads (types, finite numbers, ranges,
+unique names, IDs within the code) and returns a :class:`PlanFile`; a stage then takes
+arrays and a :class:`~planner.camera.Camera` from it and never parses the mapping again.
+``docs/plan-format.md`` documents the fields. Sections no stage computes with
+(``graph``, ``schemes_considered``, ``verification``, ``accuracy``) are kept as mappings.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
+
+from planner._files import load_yaml
+from planner.defaults import LINE_CODE_NAMES, MAX_EXTENT_M, MAX_HEIGHT_M, MAX_IMAGE_PX, MAX_RADIUS_M
+from planner.errors import InputError
+from planner.plan import FORMAT
+
+if TYPE_CHECKING:
+    from planner.camera import Camera
+
+
+# Strict scalars: no '5' for 5 and no true for 1 (an int is still a float); lists may stand for tuples.
+Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+Coordinate = Annotated[float, Strict(), Field(allow_inf_nan=False, ge=-MAX_EXTENT_M, le=MAX_EXTENT_M)]
+Positive = Annotated[float, Strict(), Field(allow_inf_nan=False, gt=0)]
+Count = Annotated[int, Strict(), Field(ge=0)]
+Text = Annotated[str, Strict()]
+
+
+class _Section(BaseModel):
+    """Keys this version does not read are kept."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+
+class Frame(_Section):
+    chips: Annotated[str, Strict(), Field(pattern=r"^[01]+$", max_length=4096)]
+    chip_rate_hz: Positive
+    line_code: Literal[LINE_CODE_NAMES]  # type: ignore[valid-type]  # the names, from the light defaults
+
+
+class Entry(_Section):
+    """One luminaire as ``plan.yaml`` lists it (lengths in metres)."""
+
+    name: Annotated[str, Strict(), Field(min_length=1, max_length=200)]
+    x: Coordinate
+    y: Coordinate
+    z: Annotated[Positive, Field(le=MAX_HEIGHT_M)]
+    radius: Annotated[Positive, Field(le=MAX_RADIUS_M)]
+    parity: Literal["odd", "even"]
+    region: Count
+    id: Annotated[Count, Field(ge=1)]
+    codeword: Count | None = None
+    frame: Frame | None = None
+    source: dict[str, Any] = {}
+
+
+class Code(_Section):
+    bits: Annotated[Count, Field(ge=1, le=32)]
+    max_id: Annotated[Count, Field(ge=1)]
+    naive_bits: Annotated[Count, Field(ge=1)]
+    lower_bound_bits: Count
+    efficiency: Finite
+    check_distance: Annotated[Count, Field(ge=1)] = 1
+    word_bits: Annotated[Count, Field(ge=1, le=64)]
+    check_bits: Count = 0
+    method: Text = ""
+
+
+class CameraFields(BaseModel):
+    """A camera's fields as ``plan.yaml`` and camera YAML files write them (``docs/camera.md``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    width_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 4000
+    height_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 3000
+    fx_px: Positive | None = None
+    fy_px: Positive | None = None
+    cx_px: Finite | None = None
+    cy_px: Finite | None = None
+    hfov_deg: Annotated[Positive, Field(lt=180)] | None = None
+    receiver_height_m: tuple[Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)],
+                             Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)]] = (0.5, 1.5)
+    max_tilt_deg: Annotated[Finite, Field(ge=0, lt=80)] = 40.0
+    row_time_s: Annotated[Positive, Field(le=1.0)] = 20e-6
+
+    @model_validator(mode="after")
+    def _heights_in_order(self) -> CameraFields:
+        low, high = self.receiver_height_m
+        if low > high:
+            raise ValueError(f"receiver_height_m must be [low, high] with low <= high, got [{low}, {high}]")
+        return self
+
+    def camera(self) -> Camera:
+        from planner.camera import Camera
+
+        return Camera.from_dict(self.model_dump(exclude_none=True))
+
+
+class Modulation(_Section):
+    """The frames' timing (times in seconds, image sizes in sensor rows)."""
+
+    line_code: Literal[LINE_CODE_NAMES]  # type: ignore[valid-type]
+    preamble: Annotated[str, Strict(), Field(pattern=r"^[01]+$", max_length=64)]
+    chip_rate_hz: Positive
+    frame_chips: Annotated[Count, Field(ge=1)]
+    frame_period_s: Positive
+    frames_in_smallest_image: Finite
+    smallest_image_rows: Positive
+    row_time_s: Positive
+
+
+class Verification(_Section):
+    """The sampled check's figures the report and ``vlp-verify`` read; the rest stays as written."""
+
+    poses: Count
+    coverage: Annotated[Finite, Field(ge=0, le=1)]
+    ambiguous: Count
+    window_set: dict[str, Any] | None = None
+
+
+class Accuracy(_Section):
+    method: Text
+    poses: Count
+    located: Count
+    median_m: Annotated[Finite, Field(ge=0)] | None = None
+    p90_m: Annotated[Finite, Field(ge=0)] | None = None
+    max_m: Annotated[Finite, Field(ge=0)] | None = None
+
+
+class PlanFile(_Section):
+    """A ``plan.yaml`` as the stages after ``vlp-plan`` read it; arrays are in luminaire order."""
+
+    format: Literal["vlp-plan/1"]
+    generator: Text = ""
+    source: dict[str, Any] = {}
+    scheme: Text
+    code: Code
+    graph: dict[str, Any] | None = None
+    schemes_considered: dict[str, Any] | None = None
+    camera: CameraFields = CameraFields()
+    verification: Verification | None = None
+    modulation: Modulation | None = None
+    accuracy: Accuracy | None = None
+    outline: list[tuple[Coordinate, Coordinate]] | None = None
+    luminaires: Annotated[list[Entry], Field(min_length=1, max_length=1_000_000)]
+
+    @model_validator(mode="after")
+    def _consistent(self) -> PlanFile:
+        names = [e.name for e in self.luminaires]
+        if len(set(names)) != len(names):
+            dup = next(n for n in names if names.count(n) > 1)
+            raise ValueError(f"luminaire name {dup!r} is used more than once")
+        for k, e in enumerate(self.luminaires):
+            if e.id > self.code.max_id:
+                raise ValueError(f"luminaires[{k}] ({e.name}): id {e.id} exceeds code.max_id {self.code.max_id}")
+        framed = sum(e.frame is not None for e in self.luminaires)
+        if framed not in (0, len(names)):
+            raise ValueError(f"{framed} of {len(names)} luminaires have a frame: all or none must")
+        if self.outline is not None and len(self.outline) < 3:
+            raise ValueError("outline must have at least 3 corners")
+        return self
+
+    @property
+    def names(self) -> list[str]:
+        return [e.name for e in self.luminaires]
+
+    @cached_property
+    def xyz(self) -> np.ndarray:
+        """Luminaire centres, shape (N, 3) [m]."""
+        return np.array([[e.x, e.y, e.z] for e in self.luminaires], dtype=float).reshape(-1, 3)
+
+    @property
+    def xy(self) -> np.ndarray:
+        """Plan positions, shape (N, 2) [m]."""
+        return self.xyz[:, :2]
+
+    @cached_property
+    def radii(self) -> np.ndarray:
+        """LED radii, shape (N,) [m]."""
+        return np.array([e.radius for e in self.luminaires], dtype=float)
+
+    @cached_property
+    def ids(self) -> np.ndarray:
+        return np.array([e.id for e in self.luminaires], dtype=np.int64)
+
+    @cached_property
+    def regions(self) -> np.ndarray:
+        return np.array([e.region for e in self.luminaires], dtype=np.int64)
+
+    @property
+    def frames(self) -> list[str] | None:
+        """Each luminaire's chips, or None when the plan has no frames."""
+        if self.modulation is None or any(e.frame is None for e in self.luminaires):
+            return None
+        return [e.frame.chips for e in self.luminaires if e.frame is not None]
+
+    @property
+    def outline_xy(self) -> np.ndarray | None:
+        """The room outline, shape (M, 2) [m], or None."""
+        return None if self.outline is None else np.array(self.outline, dtype=float)
+
+    def camera_model(self) -> Camera:
+        """The camera the plan was made for."""
+        return self.camera.camera()
+
+    def document(self) -> dict:
+        """The plan as a plain mapping (what templates see), with the keys this version does not read."""
+        return self.model_dump(mode="python")
+
+
+def _where(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def validation_message(exc: ValidationError) -> str:
+    """The first problem of a pydantic error, as ``field.path: what``, and how many more there are."""
+    errors = exc.errors(include_url=False)
+    first = errors[0]
+    what = first["msg"].removeprefix("Value error, ")
+    if first["type"] in ("dict_type", "model_type", "model_attributes_type"):
+        what = "must be a mapping"
+    elif first["type"] == "missing":
+        what = "is missing"
+    what = what.replace("Input should be", "must be").replace("String should", "must")
+    if first["type"] not in ("missing", "value_error") and "input" in first:
+        got = repr(first["input"])
+        what += f" (got {got if len(got) <= 40 else got[:37] + '...'})"
+    where = _where(tuple(p for p in first["loc"] if not str(p).startswith("function-")))
+    more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+    return (f"{where}: " if where else "") + what + more
+
+
+def plan_from_document(doc: object, where: str) -> PlanFile:
+    """A plan mapping checked into a :class:`PlanFile`; :class:`InputError` names ``where`` and the bad field."""
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        got = doc.get("format") if isinstance(doc, dict) else None
+        raise InputError(f"{where}: not a {FORMAT} plan (field 'format' is {got!r}); write it with vlp-plan")
+    try:
+        return PlanFile.model_validate(doc)
+    except ValidationError as exc:
+        raise InputError(f"{where}: {validation_message(exc)}; write the plan again with vlp-plan") from None
+    except RecursionError:
+        raise InputError(f"{where}: nested too deeply to be a plan") from None
+
+
+def load_plan(path: str | Path) -> PlanFile:
+    """Read and check a ``plan.yaml``; raise :class:`InputError` naming the file and the bad field."""
+    return plan_from_document(load_yaml(path, "no such plan file; run vlp-plan first"), str(path))
