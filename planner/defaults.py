@@ -81,3 +81,9 @@ MAX_RADIUS_M = 10.0
 
 MAX_IMAGE_PX = 20_000
 """Largest image side accepted [px] (a 200 Mpx phone sensor is 16,320 px wide)."""
+
+MAX_POSES_PER_M2 = 20_000.0
+"""Densest pose sample a flag may ask for [1/m2] (50 times the default; a 128 m2 site then samples 2.6 million)."""
+
+MAX_TIME_LIMIT_S = 86_400.0
+"""Longest search budget ``--time-limit`` accepts [deterministic s]: a day."""

@@ -208,3 +208,25 @@ def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path):
     result = subprocess.run([sys.executable, "-m", "planner.cli.verify", str(tmp_path / "o" / "plan.yaml"),
                              "--map", str(tmp_path / "no" / "such" / "map.png")], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 2 and "does not exist" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("command,flag,value,message", [
+    ("vlp-plan", "--seed", "-1", "must be a whole number from 0 to 4294967295"),
+    ("vlp-plan", "--seed", "99999999999", "must be a whole number from 0 to 4294967295"),
+    ("vlp-plan", "--poses-per-m2", "1e9", "must be at most 20000"),
+    ("vlp-plan", "--error-poses-per-m2", "1e9", "must be at most 20000"),
+    ("vlp-plan", "--time-limit", "1e308", "must be at most 86400"),
+    ("vlp-plan", "--time-limit", "nan", "must be a non-negative number"),
+    ("vlp-verify", "--seed", "-1", "must be a whole number"),
+    ("vlp-twin", "--seed", "1.5", "must be a whole number"),
+    ("vlp-accuracy", "--seed", "-3", "must be a whole number"),
+])
+def test_flags_that_ask_absurd_work_are_usage_errors(tmp_path, command, flag, value, message):
+    """Bounded before any work starts: exit 2, one line naming the flag, nothing written."""
+    args = [] if command == "vlp-accuracy" else [str(ROOT / "layouts" / "grid-32.yaml" if command == "vlp-plan"
+                                                    else tmp_path / "plan.yaml")]
+    done = subprocess.run([command, *args, f"{flag}={value}", *(["-o", str(tmp_path / "o")] if command == "vlp-plan"
+                                                                else [])],
+                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert f"argument {flag}: {message}" in done.stderr and list(tmp_path.iterdir()) == []

@@ -35,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"edge-point noise before rounding to whole pixels [px] (default {NOISE_PX:g})")
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=cli.seed, default=0, help="random seed (default 0)")
     p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (default: no plot)")
     cli.common_flags(p, "print the figures as JSON instead of the table")
     return p

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from planner import __version__
-from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, POSES_PER_M2
+from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, MAX_POSES_PER_M2, POSES_PER_M2
 from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
@@ -41,13 +41,36 @@ def positive_int(text: str) -> int:
     return value
 
 
-def _number(text: str, minimum: float, strict: bool) -> float:
+def _number(text: str, minimum: float, strict: bool, maximum: float = math.inf) -> float:
     try:
         value = float(text)
     except ValueError:
         value = math.nan
     if not (value > minimum if strict else value >= minimum) or math.isinf(value):
         raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {text!r}")
+    if value > maximum:
+        raise argparse.ArgumentTypeError(f"must be at most {maximum:g}, got {text!r}")
+    return value
+
+
+def at_most(maximum: float, strict: bool = True) -> Callable[[str], float]:
+    """A flag type: a positive (or, not ``strict``, non-negative) number up to ``maximum``; the work it asks is bounded."""
+    def parse(text: str) -> float:
+        return _number(text, 0.0, strict, maximum)
+    return parse
+
+
+MAX_SEED = 2**32 - 1
+
+
+def seed(text: str) -> int:
+    """A random seed: a whole number 0 .. 2**32 - 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {MAX_SEED}, got {text!r}")
     return value
 
 
@@ -68,8 +91,9 @@ def common_flags(p: argparse.ArgumentParser, json_help: str) -> None:
 
 def add_verify_flags(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("verification")
-    g.add_argument("--poses-per-m2", type=positive_float, default=POSES_PER_M2, metavar="N",
-                   help=f"camera poses sampled per square metre of floor (default {POSES_PER_M2:g})")
+    g.add_argument("--poses-per-m2", type=at_most(MAX_POSES_PER_M2), default=POSES_PER_M2, metavar="N",
+                   help=f"camera poses sampled per square metre of floor (default {POSES_PER_M2:g}, "
+                   f"at most {MAX_POSES_PER_M2:g})")
     g.add_argument("--tolerance", type=positive_float, default=CONGRUENCE_TOLERANCE_M, metavar="M",
                    help=f"triangles whose sides differ by less than this look alike to the receiver [m] "
                    f"(default {CONGRUENCE_TOLERANCE_M:g})")

@@ -46,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "and roll [deg] makes of the plan, using the plan's camera")
     p.add_argument("--noise-px", type=cli.non_negative_float, default=NOISE_PX, metavar="PX",
                    help=f"with --simulate: edge-point noise [px] (default {NOISE_PX:g}; 0 gives exact ellipses)")
-    p.add_argument("--seed", type=int, default=0, help="with --simulate: noise seed (default 0)")
+    p.add_argument("--seed", type=cli.seed, default=0, help="with --simulate: noise seed (default 0)")
     cli.common_flags(p, "the output is JSON with or without it (accepted, as on every command)")
     return p
 

@@ -10,7 +10,16 @@ from pathlib import Path
 
 from planner import __version__
 from planner.cli import common as cli
-from planner.defaults import DRIVER_MAX_HZ, ERROR_POSES_PER_M2, LINE_CODE_NAMES, LOCATE_METHODS, SCHEMES, UNIT_TO_M
+from planner.defaults import (
+    DRIVER_MAX_HZ,
+    ERROR_POSES_PER_M2,
+    LINE_CODE_NAMES,
+    LOCATE_METHODS,
+    MAX_POSES_PER_M2,
+    MAX_TIME_LIMIT_S,
+    SCHEMES,
+    UNIT_TO_M,
+)
 from planner.errors import ExitCode, UsageError
 
 LOW_COVERAGE = 0.5
@@ -49,9 +58,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
                    help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
                    "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
-    g.add_argument("--time-limit", type=cli.non_negative_float, default=10.0, metavar="S",
-                   help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10)")
-    g.add_argument("--seed", type=int, default=0, help="random seed of the search and the pose sample (default 0)")
+    g.add_argument("--time-limit", type=cli.at_most(MAX_TIME_LIMIT_S, strict=False), default=10.0, metavar="S",
+                   help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10, at most "
+                   f"{MAX_TIME_LIMIT_S:g})")
+    g.add_argument("--seed", type=cli.seed, default=0, help="random seed of the search and the pose sample (default 0)")
     g.add_argument("--check-distance", type=cli.positive_int, default=1, metavar="D",
                    help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
                    "detected (default 1: no check bits)")
@@ -66,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
                    help="positioning method the error map simulates (default perspective; paper: the paper's "
                    "weak-perspective method)")
-    g.add_argument("--error-poses-per-m2", type=cli.non_negative_float, default=ERROR_POSES_PER_M2, metavar="N",
+    g.add_argument("--error-poses-per-m2", type=cli.at_most(MAX_POSES_PER_M2, strict=False), default=ERROR_POSES_PER_M2, metavar="N",
                    help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
                    "0 skips the map)")
     g = p.add_argument_group("firmware")

@@ -48,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--png", metavar="FILE", help="with --pose: write the rendered frame as PNG")
     g.add_argument("--poses", type=cli.positive_int, default=300, metavar="N",
                    help="batch: N random poses where the plan is decodable (default 300)")
-    g.add_argument("--seed", type=int, default=0, help="seed of the poses, phases and noise (default 0)")
+    g.add_argument("--seed", type=cli.seed, default=0, help="seed of the poses, phases and noise (default 0)")
     g.add_argument("--jobs", type=cli.positive_int, default=os.cpu_count() or 1, metavar="J",
                    help="worker processes for a batch (default: one per core)")
     g.add_argument("--save-failures", metavar="DIR", help="batch: write each failed pose's frame as PNG into DIR")

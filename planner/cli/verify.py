@@ -32,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
     cli.add_verify_flags(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of the pose sample (default 0)")
+    p.add_argument("--seed", type=cli.seed, default=0, help="seed of the pose sample (default 0)")
     p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
     cli.common_flags(p, "print the verification summary as JSON")
     return p
