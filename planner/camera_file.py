@@ -24,7 +24,5 @@ def read_camera(path: str | Path) -> Camera:
     try:
         return CameraFields.model_validate(doc).camera()
     except ValidationError as exc:
-        message = validation_message(exc)
-        if "Extra inputs are not permitted" in message:
-            message = f"{message.split(':')[0]}: unknown field; known: {', '.join(CameraFields.model_fields)}"
-        raise InputError(f"{path}: {message}") from None
+        known = f"; known: {', '.join(CameraFields.model_fields)}" if exc.errors()[0]["type"] == "extra_forbidden" else ""
+        raise InputError(f"{path}: {validation_message(exc)}{known}") from None

@@ -4,11 +4,13 @@
 unique names, IDs within the code) and returns a :class:`PlanFile`; a stage then takes
 arrays and a :class:`~planner.camera.Camera` from it and never parses the mapping again.
 ``docs/plan-format.md`` documents the fields. Sections no stage computes with
-(``graph``, ``schemes_considered``, ``verification``, ``accuracy``) are kept as mappings.
+(``source``, ``graph``, ``schemes_considered``, ``verification.window_set``) are kept as
+mappings; keys this version does not read are kept too.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
@@ -154,7 +156,8 @@ class PlanFile(_Section):
     def _consistent(self) -> PlanFile:
         names = [e.name for e in self.luminaires]
         if len(set(names)) != len(names):
-            dup = next(n for n in names if names.count(n) > 1)
+            counts = Counter(names)  # one pass: a million names stay cheap
+            dup = next(n for n in names if counts[n] > 1)
             raise ValueError(f"luminaire name {dup!r} is used more than once")
         for k, e in enumerate(self.luminaires):
             if e.id > self.code.max_id:
@@ -230,8 +233,10 @@ def validation_message(exc: ValidationError) -> str:
         what = "must be a mapping"
     elif first["type"] == "missing":
         what = "is missing"
+    elif first["type"] == "extra_forbidden":
+        what = "unknown field"
     what = what.replace("Input should be", "must be").replace("String should", "must")
-    if first["type"] not in ("missing", "value_error") and "input" in first:
+    if first["type"] not in ("missing", "value_error", "extra_forbidden") and "input" in first:
         got = repr(first["input"])
         what += f" (got {got if len(got) <= 40 else got[:37] + '...'})"
     where = _where(tuple(p for p in first["loc"] if not str(p).startswith("function-")))

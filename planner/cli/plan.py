@@ -76,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
                    help="positioning method the error map simulates (default perspective; paper: the paper's "
                    "weak-perspective method)")
-    g.add_argument("--error-poses-per-m2", type=cli.at_most(MAX_POSES_PER_M2, strict=False), default=ERROR_POSES_PER_M2, metavar="N",
+    g.add_argument("--error-poses-per-m2", type=cli.at_most(MAX_POSES_PER_M2, strict=False),
+                   default=ERROR_POSES_PER_M2, metavar="N",
                    help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
                    "0 skips the map)")
     g = p.add_argument_group("firmware")

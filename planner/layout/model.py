@@ -8,6 +8,7 @@ that places ``N`` luminaires inside a room outline.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from typing import cast
 
@@ -117,7 +118,7 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
         )
     names = [lum.name for lum in layout.luminaires]
     if len(set(names)) != n:
-        dup = sorted({x for x in names if names.count(x) > 1})[0]
+        dup = sorted(name for name, count in Counter(names).items() if count > 1)[0]
         raise InputError(f"{where}: luminaire name {dup!r} is used more than once; names must be unique")
     xy = layout.xy
     radii = np.array([lum.radius for lum in layout.luminaires])

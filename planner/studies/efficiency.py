@@ -38,14 +38,16 @@ def efficiency(bits: int, naive_bits: int) -> float:
     return 1.0 - bits / naive_bits if naive_bits else 0.0
 
 
-def lattice_layout(n: int, pitch_m: float = PITCH_M) -> Layout:
-    """``n`` luminaires on square-ish lattice sites of ``pitch_m`` [m], row by row (as ``benchmarks/run.py``).
-
-    Columns are the power of two nearest above ``sqrt(n)`` when it divides ``n``,
-    else ``ceil(sqrt(n))`` (the last row may be partial).
-    """
+def _columns(n: int) -> int:
+    """Columns of an ``n``-site lattice: the power of two nearest above ``sqrt(n)`` when it divides ``n``, else ``ceil(sqrt(n))``."""
     cols = 2 ** math.ceil(math.log2(math.sqrt(n)))
-    cols = cols if n % cols == 0 else math.ceil(math.sqrt(n))
+    return cols if n % cols == 0 else math.ceil(math.sqrt(n))
+
+
+def lattice_layout(n: int, pitch_m: float = PITCH_M) -> Layout:
+    """``n`` luminaires on square-ish lattice sites of ``pitch_m`` [m], row by row (as ``benchmarks/run.py``),
+    in :func:`_columns` columns (the last row may be partial)."""
+    cols = _columns(n)
     lums = tuple(Luminaire(f"L{k:06d}", (k % cols) * pitch_m, (k // cols) * pitch_m, 2.5) for k in range(n))
     return Layout(lums, source_path=f"lattice-{n}.yaml")
 
@@ -56,7 +58,7 @@ def paper_grid(n: int, pitch_m: float = PITCH_M) -> Layout:
     Built in code so that an installed copy regenerates the same table: ``R01C01``...
     at the centres of ``pitch_m`` [m] cells in a rectangular room, 2.5 m high, 0.1 m LEDs.
     """
-    cols = 2 ** math.ceil(math.log2(math.sqrt(n)))
+    cols = _columns(n)  # 8, 16 and 32: each divides its n
     rows = n // cols
     name = PAPER_LAYOUTS[n]
     lums = tuple(Luminaire(f"R{r + 1:02d}C{c + 1:02d}", (c + 0.5) * pitch_m, (r + 0.5) * pitch_m, 2.5, 0.1,
