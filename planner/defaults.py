@@ -79,6 +79,21 @@ MAX_HEIGHT_M = 100.0
 MAX_RADIUS_M = 10.0
 """Largest LED radius accepted [m]."""
 
+MAX_LUMINAIRES = 100_000
+"""Most luminaires one plan holds (a layout, or ``--leds``): the work of the stages grows with it."""
+
+MAX_OBSERVED_LEDS = 2_000
+"""Most LEDs one observation file may list: more than any photo shows whole."""
+
+MAX_MCU_CLOCK_HZ = 1e9
+"""Fastest driver microcontroller clock accepted [Hz]: the header's constants are 32-bit (``UL`` on an AVR)."""
+
+MIN_RADIUS_M = 1e-3
+"""Smallest LED radius accepted [m]: a disc under a millimetre is an error of units, and images to nothing."""
+
+MAX_FOCAL_PX = 1e6
+"""Longest focal length accepted [px]: 1,000 times a 1,000-pixel half-width, far beyond any phone lens."""
+
 MAX_IMAGE_PX = 20_000
 """Largest image side accepted [px] (a 200 Mpx phone sensor is 16,320 px wide)."""
 

@@ -215,9 +215,12 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
     if (outdir / "as-built.json").exists():
         raise UsageError(f"{outdir}: holds as-built.json, the record of drivers flashed with the plan there, which "
                          "replanning would delete; choose another -o, or move as-built.json away first")
-    outdir.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        outdir.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
+    except OSError as exc:
+        raise UsageError(f"-o {outdir}: cannot write there ({exc.strerror}); choose another -o") from None
     source = Path(plan.layout.source_path)
-    stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
     try:
         stage.chmod(0o755)  # mkdtemp makes it private; outputs are for the whole crew
         document = plan_document(plan, _sha256(source) if source.is_file() else "")

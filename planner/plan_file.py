@@ -16,11 +16,20 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
 
 from planner._files import load_yaml
-from planner.defaults import LINE_CODE_NAMES, MAX_EXTENT_M, MAX_HEIGHT_M, MAX_IMAGE_PX, MAX_RADIUS_M
+from planner.defaults import (
+    LINE_CODE_NAMES,
+    MAX_EXTENT_M,
+    MAX_FOCAL_PX,
+    MAX_HEIGHT_M,
+    MAX_IMAGE_PX,
+    MAX_RADIUS_M,
+    MIN_RADIUS_M,
+)
 from planner.errors import InputError
+from planner.layout.model import name_problem
 from planner.plan import FORMAT
 
 if TYPE_CHECKING:
@@ -47,14 +56,21 @@ class Frame(_Section):
     line_code: Literal[LINE_CODE_NAMES]  # type: ignore[valid-type]  # the names, from the light defaults
 
 
+def _valid_name(name: str) -> str:
+    problem = name_problem(name)
+    if problem:
+        raise ValueError(f"the name {problem}")
+    return name
+
+
 class Entry(_Section):
     """One luminaire as ``plan.yaml`` lists it (lengths in metres)."""
 
-    name: Annotated[str, Strict(), Field(min_length=1, max_length=200)]
+    name: Annotated[str, Strict(), AfterValidator(_valid_name)]
     x: Coordinate
     y: Coordinate
     z: Annotated[Positive, Field(le=MAX_HEIGHT_M)]
-    radius: Annotated[Positive, Field(le=MAX_RADIUS_M)]
+    radius: Annotated[Positive, Field(ge=MIN_RADIUS_M, le=MAX_RADIUS_M)]
     parity: Literal["odd", "even"]
     region: Count
     id: Annotated[Count, Field(ge=1)]
@@ -81,11 +97,11 @@ class CameraFields(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     width_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 4000
     height_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 3000
-    fx_px: Positive | None = None
-    fy_px: Positive | None = None
+    fx_px: Annotated[Positive, Field(ge=1, le=MAX_FOCAL_PX)] | None = None
+    fy_px: Annotated[Positive, Field(ge=1, le=MAX_FOCAL_PX)] | None = None
     cx_px: Finite | None = None
     cy_px: Finite | None = None
-    hfov_deg: Annotated[Positive, Field(lt=180)] | None = None
+    hfov_deg: Annotated[Positive, Field(ge=0.1, lt=180)] | None = None
     receiver_height_m: tuple[Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)],
                              Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)]] = (0.5, 1.5)
     max_tilt_deg: Annotated[Finite, Field(ge=0, lt=80)] = 40.0
@@ -96,6 +112,9 @@ class CameraFields(BaseModel):
         low, high = self.receiver_height_m
         if low > high:
             raise ValueError(f"receiver_height_m must be [low, high] with low <= high, got [{low}, {high}]")
+        for name, value, size in (("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)):
+            if value is not None and not 0 <= value <= size:
+                raise ValueError(f"{name} {value:g} lies outside the {self.width_px} x {self.height_px} px image")
         return self
 
     def camera(self) -> Camera:

@@ -33,6 +33,7 @@ RC: dict[RcKeyType, Any] = {
     "figure.dpi": 110,
     "savefig.dpi": 110,
     "pdf.fonttype": 42,
+    "text.parse_math": False,  # names and file names are text: "$x$" must not become math (or an error)
 }
 """Matplotlib settings shared by all figures."""
 

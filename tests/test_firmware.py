@@ -97,13 +97,20 @@ def test_compiled_header_plays_the_frame(tmp_path, key):
     compile_and_run(folder, tmp_path, "include_only.c")  # nothing used: still no warning
 
 
-@pytest.mark.parametrize("name", ['a*/b "x"??/ \\', "/* é */ \n\t end", "?" * 9 + "*"])
+@pytest.mark.parametrize("name", ['a*/b "x"??/ \\', "/* é */ end \\", "?" * 9 + "*", "名前 */ #define X"])
 def test_hostile_names_stay_inside_strings_and_comments(tmp_path, name):
     write_firmware(plan_doc(lum(name, 3, FRAMES["m4"][0])), HASH, tmp_path)
     (folder,) = (tmp_path / "firmware").iterdir()
     out = compile_and_run(folder, tmp_path)
     assert out.endswith(b"\nname " + name.encode("utf-8") + b"\n")
     assert json.loads((folder / "vlp_config.json").read_text("utf-8"))["luminaire"] == name
+
+
+def test_names_with_control_characters_never_reach_a_template(tmp_path):
+    """The name rule (planner.layout.model.name_problem) holds at every reader, so no output must escape a newline."""
+    with pytest.raises(InputError, match=r"luminaires\[0\]\.name: the name holds the control character U\+000A"):
+        write_firmware(plan_doc(lum("/* é */ \n\t end", 3, FRAMES["m4"][0])), HASH, tmp_path)
+    assert not (tmp_path / "firmware").exists()
 
 
 def hex_dump(data: bytes) -> str:

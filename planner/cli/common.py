@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import traceback
 from collections.abc import Callable
@@ -39,6 +40,16 @@ def positive_int(text: str) -> int:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
     return value
+
+
+def count_up_to(maximum: int) -> Callable[[str], int]:
+    """A flag type: a positive whole number up to ``maximum`` (the work it asks is bounded)."""
+    def parse(text: str) -> int:
+        value = positive_int(text)
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"must be at most {maximum:,}, got {text!r}")
+        return value
+    return parse
 
 
 def _number(text: str, minimum: float, strict: bool, maximum: float = math.inf) -> float:
@@ -183,26 +194,59 @@ def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
     return key
 
 
+def one_line(text: str) -> str:
+    """``text`` with every non-printable character (newlines, controls, undecodable bytes) escaped,
+    so that what a hostile file holds cannot split, forge or break an error line."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace").decode("ascii")
+                   if ord(c) < 0xD800 or ord(c) > 0xDFFF else f"\\x{ord(c) - 0xDC00:02x}" for c in text)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: raised like Ctrl-C, so every half-written output is removed on the way out."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _terminate(signum: int, frame) -> NoReturn:
+    raise Terminated(signum)
+
+
 def console_main(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str) -> int:
-    """Run ``command(argv)`` as the script ``name``: its exit code, or one line per error and the error's code."""
+    """Run ``command(argv)`` as the script ``name``: its exit code, or one line per error and the error's code.
+
+    SIGTERM and SIGHUP (a closed terminal, ``kill``, a CI timeout) unwind like Ctrl-C, so
+    staging folders and temporary files are removed; the exit code is 128 + the signal.
+    """
     verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
+    try:
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, _terminate)
+    except ValueError:  # not the main thread (a test calling main() from a worker): leave the defaults
+        pass
     try:
         return command(argv)
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()
-        print(f"{name}: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {one_line(str(exc))}", file=sys.stderr)
         return exc.exit_code
     except BrokenPipeError:  # the reader went away (``| head``): stop quietly, as Unix tools do
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return ExitCode.BROKEN_PIPE
+    except Terminated as exc:
+        print(f"{name}: stopped by {exc}; no output was written", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print(f"{name}: interrupted; no output was written", file=sys.stderr)
         return ExitCode.INTERRUPTED
     except Exception as exc:  # a bug: still one line, unless asked for more
         if verbose:
             traceback.print_exc()
-        print(f"{name}: internal error: {type(exc).__name__}: {exc} (rerun with --verbose and report it)",
+        print(f"{name}: internal error: {type(exc).__name__}: {one_line(str(exc))} (rerun with --verbose and report it)",
               file=sys.stderr)
         return ExitCode.INPUT
 

@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from planner._files import read_text
 from planner.cli import common as cli
 from planner.errors import ExitCode, InputError, UsageError
 
@@ -94,16 +95,13 @@ def _addresses(plan: PlanFile, path: str | None) -> dict[str, int]:
     if not path:
         return {e.name: k + 1 for k, e in enumerate(plan.luminaires)}
     out = {}
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            for n, row in enumerate(csv.reader(f), 1):
-                if not row or row[0].startswith("#") or row[0] == "name":
-                    continue
-                if len(row) != 2 or not row[1].strip().isdigit() or not 1 <= int(row[1]) <= 0xFFFE:
-                    raise InputError(f"{path}: line {n}: expected 'name,address' with address 1..65534")
-                out[row[0].strip()] = int(row[1])
-    except OSError as exc:
-        raise UsageError(f"--bus-map {path}: cannot read ({exc.strerror})") from None
+    text = read_text(path, "bus map", "no such bus map (--bus-map)")
+    for n, row in enumerate(csv.reader(text.splitlines()), 1):
+        if not row or row[0].startswith("#") or row[0] == "name":
+            continue
+        if len(row) != 2 or not row[1].strip().isdigit() or not 1 <= int(row[1]) <= 0xFFFE:
+            raise InputError(f"{path}: line {n}: expected 'name,address' with address 1..65534")
+        out[row[0].strip()] = int(row[1])
     return out
 
 

@@ -15,6 +15,8 @@ from planner.defaults import (
     ERROR_POSES_PER_M2,
     LINE_CODE_NAMES,
     LOCATE_METHODS,
+    MAX_LUMINAIRES,
+    MAX_MCU_CLOCK_HZ,
     MAX_POSES_PER_M2,
     MAX_TIME_LIMIT_S,
     SCHEMES,
@@ -38,9 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
         "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
     )
     p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .yaml/.yml or .csv")
-    p.add_argument("--leds", type=cli.positive_int, metavar="N",
+    p.add_argument("--leds", type=cli.count_up_to(MAX_LUMINAIRES), metavar="N",
                    help="expected luminaire count (a mismatch is an error); with only a room outline, "
-                   "lay out N luminaires on a lattice inside it")
+                   "lay out N luminaires on a lattice inside it (at most 100,000)")
     p.add_argument("-o", "--outdir", metavar="OUTDIR", help="output directory (default: <layout>-vlp next to LAYOUT)")
     g = p.add_argument_group("reading")
     g.add_argument("--units", choices=sorted(UNIT_TO_M), help="coordinate unit of LAYOUT, overriding the file")
@@ -83,8 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("firmware")
     g.add_argument("--templates", metavar="DIR",
                    help="render every *.j2 template in DIR per luminaire instead of the bundled ones (docs/firmware.md)")
-    g.add_argument("--mcu-clock-hz", type=cli.positive_float, default=16e6, metavar="HZ",
-                   help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6)")
+    g.add_argument("--mcu-clock-hz", type=cli.at_most(MAX_MCU_CLOCK_HZ), default=16e6, metavar="HZ",
+                   help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6, "
+                        "at most 1e9)")
     g.add_argument("--image-version", type=cli.positive_int, default=1, metavar="N",
                    help="version written into every configuration image; drivers refuse older ones (default 1)")
     g.add_argument("--no-firmware", action="store_true", help="do not write OUTDIR/firmware/")

@@ -46,6 +46,9 @@ def chip_timer(chip_rate_hz: float, mcu_clock_hz: float) -> TimerSetting:
     ticks = math.floor(mcu_clock_hz / chip_rate_hz + 0.5)
     if ticks < 2:
         raise InputError(f"chip rate {chip_rate_hz:g} Hz is too fast for an MCU clock of {mcu_clock_hz:g} Hz")
+    if ticks > 0xFFFFFFFF:  # the header's constants are 32-bit
+        raise InputError(f"{ticks:,} clock ticks per chip do not fit the header's 32-bit timer constants; "
+                         f"an MCU clock of {mcu_clock_hz:g} Hz is too fast for {chip_rate_hz:g} chips/s")
     actual = mcu_clock_hz / ticks
     return TimerSetting(ticks, ticks - 1, actual, (actual - chip_rate_hz) / chip_rate_hz * 1e6)
 

@@ -29,14 +29,19 @@ class Journal:
         if self.path.exists():
             try:
                 doc = json.loads(self.path.read_text("utf-8"))
-            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
                 raise InputError(f"{self.path}: not a readable journal ({exc}); move it away to start a new one") from None
             if not isinstance(doc, dict) or doc.get("format") != FORMAT:
                 raise InputError(f"{self.path}: not a {FORMAT} journal; move it away to start a new one")
             if doc.get("plan_hash") != plan_hash:
                 raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan ({plan_hash}); "
                                  "give another --journal for a new plan")
-            self.entries = dict(doc.get("luminaires", {}))
+            entries = doc.get("luminaires", {})
+            if not isinstance(entries, dict) or not all(isinstance(k, str) and isinstance(v, dict)
+                                                        for k, v in entries.items()):
+                raise InputError(f"{self.path}: luminaires must map each name to its record; the journal was "
+                                 "edited or damaged: move it away to start a new one")
+            self.entries = dict(entries)
 
     def done(self, name: str, image_sha256: str) -> bool:
         """True if ``name`` was flashed with this image and verified."""

@@ -28,7 +28,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from planner.defaults import UNIT_TO_M
+from planner.defaults import MAX_EXTENT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf_units import Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
@@ -111,7 +111,7 @@ def load_drawing(path: str | Path) -> tuple[Drawing, list[str]]:
         return ezdxf.readfile(where), []
     except OSError as exc:
         raise InputError(f"{where}: cannot read the file ({exc.strerror or exc}); check its permissions") from exc
-    except (ezdxf.DXFError, ValueError, KeyError, IndexError) as exc:  # damaged: try to recover below
+    except (ezdxf.DXFError, ValueError, KeyError, IndexError, TypeError, EOFError, StopIteration) as exc:  # damaged: recover
         first = exc
     try:
         doc, auditor = recover.readfile(where)
@@ -188,7 +188,10 @@ def _source(scan: _Scan, entity, kind: str, layer: str, ancestry: tuple) -> dict
 def _walk(scan: _Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry: tuple) -> None:
     """Collect luminaire parts and outline candidates; ``m`` maps these entities to WCS."""
     for entity in entities:
-        layer = entity.dxf.get("layer", "0")
+        try:
+            layer = entity.dxf.get("layer", "0")
+        except ezdxf.DXFError:  # an entity type ezdxf does not know (a damaged or foreign file): not ours
+            continue
         if inherited is not None and layer == "0":
             layer = inherited  # entities on layer 0 inside a block take the INSERT's layer
         kind = entity.dxftype()
@@ -363,6 +366,7 @@ def read_dxf(
         raise InputError(f"{where}: the model space is empty{damaged}; export the plan in model space, not only in a layout")
     scan = _Scan(path.name, selector)
     _walk(scan, msp, None, None, ())
+    _check_numbers(scan, where)
     outline = max(scan.outlines, key=area_m2, default=None)
     if not scan.parts and not (allow_outline_only and outline is not None):
         hint = " (or --leds N to fill the room outline)" if outline is not None else ""
@@ -381,6 +385,25 @@ def read_dxf(
     luminaires, lum_notes = _luminaires(scan.parts, parts, scale, fallback_m, mount_height_m)
     outline_m = tuple((x * scale, y * scale) for x, y in outline) if outline is not None else None
     return Layout(tuple(luminaires), outline_m, where, unit, reason, tuple(notes + unit_notes + lum_notes))
+
+
+def _check_numbers(scan: _Scan, where: str) -> None:
+    """Refuse coordinates that are not numbers or lie beyond any building in any unit, and radii <= 0,
+    naming the entity, before anything is computed from them."""
+    limit = 1e6 * MAX_EXTENT_M / min(UNIT_TO_M.values())  # far beyond any unit: the unit check explains the rest
+    for part in scan.parts:
+        xyz, r = np.asarray(part.xyz, dtype=float), part.radius
+        if not np.isfinite(xyz).all() or np.abs(xyz).max() > limit or (r is not None and not 0 < r < limit):
+            src = part.source
+            radius = "" if r is None else f", radius {r:g}"
+            raise InputError(f"{where}: {src['entity']} {src['handle']} on layer {src['layer']!r} at "
+                             f"({', '.join(f'{v:g}' for v in xyz)}){radius}: not a plausible drawing value "
+                             f"(finite, within {limit:g} units, radius > 0); fix or delete that entity")
+    for corners in scan.outlines:
+        pts = np.asarray(corners, dtype=float)
+        if not np.isfinite(pts).all() or np.abs(pts).max() > limit:
+            raise InputError(f"{where}: a closed polyline on a wall layer has a corner that is not a plausible "
+                             f"drawing value (finite, within {limit:g} units); fix or delete it")
 
 
 def _luminaires(

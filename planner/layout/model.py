@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.path import Path as _PolygonPath
 from scipy.spatial import cKDTree
 
-from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, MAX_RADIUS_M
+from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, MAX_LUMINAIRES, MAX_RADIUS_M, MIN_RADIUS_M
 from planner.errors import InputError
 
 DEFAULT_RADIUS_M = 0.1
@@ -24,6 +24,32 @@ DEFAULT_RADIUS_M = 0.1
 
 DEFAULT_MOUNT_HEIGHT_M = 2.5
 """Ceiling height when neither drawing nor flags give one [m] (the paper's rig)."""
+
+
+MAX_NAME_CHARS = 64
+"""Longest luminaire name accepted [characters]."""
+
+
+def name_problem(name: str) -> str | None:
+    """What is wrong with a luminaire name, or None: the one rule every reader applies.
+
+    A name is 1-64 printable characters (letters of any script, digits, punctuation,
+    inner spaces; no newline, tab or other control character) without spaces at either
+    end. Each output escapes what its format needs: folder names are sanitised with a hash
+    where the name is not a portable file name (``planner.firmware.render.file_name``), C and
+    JSON get escaped literals, HTML is autoescaped, DXF XDATA and figures take it as plain
+    text.
+    """
+    if not name:
+        return "is empty"
+    if len(name) > MAX_NAME_CHARS:
+        return f"has {len(name)} characters, more than {MAX_NAME_CHARS}"
+    if not name.isprintable():
+        bad = next(c for c in name if not c.isprintable())
+        return f"holds the control character U+{ord(bad):04X}"
+    if name != name.strip():
+        return "starts or ends with a space"
+    return None
 
 
 @dataclass(frozen=True)
@@ -111,12 +137,20 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
             f"{where}: found {n} luminaires but --leds says {expected}; "
             "fix the drawing's layer/block selection or the --leds count"
         )
+    if n > MAX_LUMINAIRES:
+        raise InputError(f"{where}: {n:,} luminaires, more than the {MAX_LUMINAIRES:,} one plan holds; "
+                         "split the site into parts (by floor or wing) and plan each")
     if n < 3:
         raise InputError(
             f"{where}: only {n} luminaire(s) found; positioning needs at least 3 "
             "(check the layer and block patterns, or use --leds N with a room outline)"
         )
     names = [lum.name for lum in layout.luminaires]
+    for name in names:
+        problem = name_problem(name)
+        if problem:
+            raise InputError(f"{where}: luminaire name {name!r} {problem}; names are 1-{MAX_NAME_CHARS} printable "
+                             "characters without control characters or spaces at either end")
     if len(set(names)) != n:
         dup = sorted(name for name, count in Counter(names).items() if count > 1)[0]
         raise InputError(f"{where}: luminaire name {dup!r} is used more than once; names must be unique")
@@ -125,11 +159,18 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     if not np.all(np.isfinite(xy)) or not np.all(radii > 0):
         raise InputError(f"{where}: a luminaire has a non-finite position or a radius <= 0")
     for lum in layout.luminaires:  # the bounds plan.yaml's reader holds every plan to (planner.plan_file)
-        if max(abs(lum.x), abs(lum.y)) > MAX_EXTENT_M or not 0 < lum.z <= MAX_HEIGHT_M or lum.radius > MAX_RADIUS_M:
+        if (max(abs(lum.x), abs(lum.y)) > MAX_EXTENT_M or not 0 < lum.z <= MAX_HEIGHT_M
+                or not MIN_RADIUS_M <= lum.radius <= MAX_RADIUS_M):
             raise InputError(
                 f"{where}: luminaire {lum.name!r} at ({lum.x:g}, {lum.y:g}, {lum.z:g}) m, radius {lum.radius:g} m: "
                 f"outside what a building holds (|x|, |y| <= {MAX_EXTENT_M:g} m, 0 < z <= {MAX_HEIGHT_M:g} m, "
-                f"radius <= {MAX_RADIUS_M:g} m); check the units (--units) or the height (--height)")
+                f"{MIN_RADIUS_M:g} m <= radius <= {MAX_RADIUS_M:g} m); check the units (--units), the height "
+                "(--height) or the radius (--radius)")
+    if layout.outline is not None:
+        corners = np.asarray(layout.outline, dtype=float)
+        if not np.isfinite(corners).all() or np.abs(corners).max(initial=0.0) > MAX_EXTENT_M:
+            raise InputError(f"{where}: the room outline has a corner that is not a number or beyond "
+                             f"{MAX_EXTENT_M:g} m; fix the outline's coordinates or its units (--units)")
     tree = cKDTree(xy)
     # many points and k=2: arrays (the stubs' return type also allows one point's scalars)
     dist, idx = cast("tuple[np.ndarray, np.ndarray]", tree.query(xy, k=2))
@@ -174,6 +215,10 @@ def fill_outline(
     width, height = hi - lo
     if width <= 0 or height <= 0:
         raise InputError("room outline has no area; draw it as a closed polyline")
+    room_m2 = area_m2(outline)
+    if count * (2 * radius_m) ** 2 > room_m2:  # even a perfect packing could not keep the discs apart
+        raise InputError(f"--leds {count}: {count:,} luminaires of radius {radius_m:g} m do not fit in the "
+                         f"room's {room_m2:.1f} m2; ask for fewer (at most {int(room_m2 / (2 * radius_m) ** 2):,})")
     polygon = _PolygonPath(local)
     best = None
     for cols in range(1, count + 1):

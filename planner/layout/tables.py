@@ -9,7 +9,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from planner._files import load_yaml
+from planner._files import load_yaml, read_text
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
@@ -102,7 +102,7 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     """Read a CSV layout: a header row naming ``x``, ``y`` and optionally ``name``, ``z``,
     ``radius``; lines starting with ``#`` are comments (``# unit: mm`` sets the unit)."""
     path = Path(path)
-    text = path.read_text(encoding="utf-8-sig")
+    text = read_text(path, "CSV file")
     unit_in_file = None
     lines, numbers = [], []
     for number, line in enumerate(text.splitlines(), start=1):
@@ -126,9 +126,12 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     defaults = _defaults(mount_height_m, radius_m, {}, scale, str(path))
     lums = []
     for k, raw in enumerate(reader):
-        row = {h.strip().lower(): (v.strip() if isinstance(v, str) else v) for h, v in raw.items() if h}
         number = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
         where = f"{path}: line {number}"
+        if None in raw:  # DictReader's key for fields beyond the header: a stray comma, e.g. "1,5" for 1.5
+            raise InputError(f"{where}: more fields than the header names ({', '.join(header)}); a decimal comma? "
+                             "write 1.5, not 1,5")
+        row = {h.strip().lower(): (v.strip() if isinstance(v, str) else v) for h, v in raw.items() if h}
         lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": number}))
     reason = "given with --units" if units else ("stated in the file" if unit_in_file else "the default")
     return Layout(tuple(lums), None, str(path), unit, reason)

@@ -13,7 +13,9 @@ import json
 import math
 from pathlib import Path
 
+from planner._files import read_text
 from planner.camera import Camera
+from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
 from planner.ellipse import Ellipse
 from planner.errors import InputError
 from planner.positioning.locate import Snapshot
@@ -44,9 +46,14 @@ def parse_snapshot(doc, where: str = "observation") -> Snapshot:
     fy = _number(cam.get("fy", fx), f"{where}: camera.fy", True)
     cx = _number(cam.get("cx", w / 2), f"{where}: camera.cx")
     cy = _number(cam.get("cy", h / 2), f"{where}: camera.cy")
+    if max(w, h) > MAX_IMAGE_PX:
+        raise InputError(f"{where}: camera image {w} x {h} px, larger than {MAX_IMAGE_PX:,} px on a side")
     leds = _field(doc, "leds", where)
     if not isinstance(leds, list):
         raise InputError(f"{where}: 'leds' must be a list")
+    if len(leds) > MAX_OBSERVED_LEDS:
+        raise InputError(f"{where}: {len(leds):,} LEDs in one image, more than the {MAX_OBSERVED_LEDS:,} a "
+                         "photo can show whole; list the LEDs of one image")
     ids, ellipses = [], []
     for k, led in enumerate(leds):
         at = f"{where}: leds[{k}]"
@@ -70,13 +77,13 @@ def parse_snapshot(doc, where: str = "observation") -> Snapshot:
 def read_snapshot(path: str | Path) -> Snapshot:
     """Read an observation file; one-line :class:`InputError` for a missing file or bad JSON."""
     path = Path(path)
+    text = read_text(path, "observation file", "no such observation file")
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such observation file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        line = f" line {exc.lineno}:" if isinstance(exc, json.JSONDecodeError) else ""
-        raise InputError(f"{path}:{line} not valid JSON ({exc.msg if hasattr(exc, 'msg') else exc.reason})") from None
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: line {exc.lineno}: not valid JSON ({exc.msg})") from None
+    except RecursionError:
+        raise InputError(f"{path}: JSON nested too deeply to be an observation file") from None
     return parse_snapshot(doc, str(path))
 
 

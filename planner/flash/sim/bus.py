@@ -159,6 +159,13 @@ class SimBus:
             driver.flash.close()
 
 
+MAX_SLOT_BYTES = 1 << 20
+"""Largest simulated slot [bytes]: a driver's configuration image is a few hundred bytes."""
+
+MAX_SIM_FLASH_BYTES = 1 << 30
+"""Most flash the simulated drivers of one bus hold together [bytes] (RAM or files)."""
+
+
 def make_bus(n_drivers: int, site_key: bytes, *, first_address: int = 1, serial_prefix: str = "SIM-",
              flash_dir: Path | str | None = None, slot_size: int = 4096, max_block: int = 256,
              block_write_us: int = 2000, faults: Faults | None = None) -> SimBus:
@@ -171,6 +178,15 @@ def make_bus(n_drivers: int, site_key: bytes, *, first_address: int = 1, serial_
     if n_drivers < 1 or not 1 <= first_address <= last <= 0xFFFE:
         raise SimConfigError(f"{n_drivers} drivers from address {first_address}: addresses must lie in 1..65534 "
                              "and there must be at least one driver")
+    if not 16 <= slot_size <= MAX_SLOT_BYTES or not 1 <= max_block <= 0xFFFF:
+        raise SimConfigError(f"slot_size={slot_size}, max_block={max_block}: slots hold 16 to {MAX_SLOT_BYTES:,} "
+                             "bytes and a block 1 to 65535")
+    if not 0 <= block_write_us <= 10_000_000:
+        raise SimConfigError(f"block_write_us={block_write_us}: a block's programming time is 0 to 10 s")
+    if 2 * slot_size * n_drivers > MAX_SIM_FLASH_BYTES:
+        raise SimConfigError(f"{n_drivers} drivers with two {slot_size:,}-byte slots need "
+                             f"{2 * slot_size * n_drivers / 2**20:,.0f} MiB of flash, more than the simulator's "
+                             f"{MAX_SIM_FLASH_BYTES / 2**20:,.0f} MiB; use fewer drivers or a smaller slot_size")
     if len(serial_prefix) + 6 > 16 or not serial_prefix.isascii():
         raise SimConfigError(f"serial prefix {serial_prefix!r}: at most 10 ASCII characters (serials have 16)")
     folder = Path(flash_dir) if flash_dir is not None else None
