@@ -79,6 +79,9 @@ MAX_HEIGHT_M = 100.0
 MAX_RADIUS_M = 10.0
 """Largest LED radius accepted [m]."""
 
+MAX_SEED = 2**32 - 1
+"""Largest random seed a flag takes (numpy's seeds are 32-bit here)."""
+
 MAX_LUMINAIRES = 100_000
 """Most luminaires one plan holds (a layout, or ``--leds``): the work of the stages grows with it."""
 

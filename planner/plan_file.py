@@ -56,6 +56,12 @@ class Frame(_Section):
     line_code: Literal[LINE_CODE_NAMES]  # type: ignore[valid-type]  # the names, from the light defaults
 
 
+def _this_format(value: str) -> str:
+    if value != FORMAT:
+        raise ValueError(f"must be {FORMAT!r}")
+    return value
+
+
 def _valid_name(name: str) -> str:
     problem = name_problem(name)
     if problem:
@@ -157,7 +163,7 @@ class Accuracy(_Section):
 class PlanFile(_Section):
     """A ``plan.yaml`` as the stages after ``vlp-plan`` read it; arrays are in luminaire order."""
 
-    format: Literal["vlp-plan/1"]
+    format: Annotated[str, AfterValidator(_this_format)]
     generator: Text = ""
     source: dict[str, Any] = {}
     scheme: Text

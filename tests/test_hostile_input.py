@@ -401,3 +401,17 @@ def test_the_name_rule(tmp_path, capsys):
     assert len(folders) == 12 and all(f.is_dir() and not f.name.startswith(".") and (f / "vlp_config.h").is_file()
                                       for f in folders)
     assert "CON" not in {f.name for f in folders}  # a Windows device name gets a hash
+
+
+def test_absurd_sizes_asked_by_flags_are_refused_before_work(tmp_path, capsys):
+    layout = tmp_path / "site.yaml"
+    doc = _layout_doc()
+    (tmp_path / "room.yaml").write_text(_dump({k: v for k, v in doc.items() if k != "luminaires"}))
+    layout.write_text(_dump(doc))
+    for argv, expected in (([str(tmp_path / "room.yaml"), "--leds", str(10**7)], "at most 100,000"),
+                           ([str(tmp_path / "room.yaml"), "--leds", "90000"], "do not fit in the room's 3.0 m2"),
+                           ([str(layout), "--mcu-clock-hz", "1e30"], "at most 1e+09"),
+                           ([str(layout), "--poses-per-m2", "1e9"], "at most 20000")):
+        code, _, err, seconds = _run(plan, [*argv, "-o", str(tmp_path / "out")], capsys)
+        assert code in (1, 2) and expected in err and seconds < 30, (argv, err)  # ran until killed before
+        assert not (tmp_path / "out").exists()

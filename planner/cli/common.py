@@ -15,10 +15,10 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from planner import __version__
-from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, MAX_POSES_PER_M2, POSES_PER_M2
+from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, MAX_POSES_PER_M2, MAX_SEED, POSES_PER_M2
 from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
@@ -69,9 +69,6 @@ def at_most(maximum: float, strict: bool = True) -> Callable[[str], float]:
     def parse(text: str) -> float:
         return _number(text, 0.0, strict, maximum)
     return parse
-
-
-MAX_SEED = 2**32 - 1
 
 
 def seed(text: str) -> int:
@@ -222,11 +219,20 @@ def console_main(argv: list[str] | None, command: Callable[[list[str] | None], i
     staging folders and temporary files are removed; the exit code is 128 + the signal.
     """
     verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
+    before: dict[signal.Signals, Any] = {}  # the handlers to give back
     try:
         for sig in (signal.SIGTERM, signal.SIGHUP):
-            signal.signal(sig, _terminate)
+            before[sig] = signal.signal(sig, _terminate)
     except ValueError:  # not the main thread (a test calling main() from a worker): leave the defaults
         pass
+    try:
+        return _run(argv, command, name, verbose)
+    finally:  # a caller in the same process (a test, a script) gets its own handlers back
+        for old, handler in before.items():
+            signal.signal(old, handler)
+
+
+def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str, verbose: bool) -> int:
     try:
         return command(argv)
     except PlannerError as exc:
