@@ -3,6 +3,7 @@ one atomic writer every output goes through (never a half-written file)."""
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from collections.abc import Callable
@@ -47,6 +48,19 @@ def load_yaml(path: str | Path, missing: str = "no such file"):
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}:" if mark else ""
         raise InputError(f"{path}:{line} not valid YAML ({getattr(exc, 'problem', None) or exc})") from exc
+
+
+def load_json(path: str | Path, what: str, missing: str = "no such file"):
+    """Parse the JSON file ``path``; a missing file, another encoding, bad JSON or nesting too deep for
+    the parser raises :class:`InputError` naming the file (and line)."""
+    path = Path(path)
+    text = read_text(path, what, missing)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: line {exc.lineno}: not valid JSON ({exc.msg})") from None
+    except RecursionError:
+        raise InputError(f"{path}: JSON nested too deeply to be a {what}") from None
 
 
 def write_atomically(path: str | Path, write: Callable[[Path], object]) -> None:

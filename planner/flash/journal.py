@@ -12,7 +12,7 @@ import json
 from datetime import UTC, datetime
 from pathlib import Path
 
-from planner._files import write_text_atomically
+from planner._files import load_json, write_text_atomically
 from planner.errors import InputError
 from planner.flash.flasher import FlashResult
 
@@ -28,9 +28,9 @@ class Journal:
         self.entries: dict[str, dict] = {}
         if self.path.exists():
             try:
-                doc = json.loads(self.path.read_text("utf-8"))
-            except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-                raise InputError(f"{self.path}: not a readable journal ({exc}); move it away to start a new one") from None
+                doc = load_json(self.path, "journal")
+            except InputError as exc:
+                raise InputError(f"{exc}; move it away to start a new one") from None
             if not isinstance(doc, dict) or doc.get("format") != FORMAT:
                 raise InputError(f"{self.path}: not a {FORMAT} journal; move it away to start a new one")
             if doc.get("plan_hash") != plan_hash:

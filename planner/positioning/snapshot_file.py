@@ -9,11 +9,10 @@ corner, full axis lengths, major-axis angle from the image x axis in degrees::
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
-from planner._files import read_text
+from planner._files import load_json
 from planner.camera import Camera
 from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
 from planner.ellipse import Ellipse
@@ -77,14 +76,7 @@ def parse_snapshot(doc, where: str = "observation") -> Snapshot:
 def read_snapshot(path: str | Path) -> Snapshot:
     """Read an observation file; one-line :class:`InputError` for a missing file or bad JSON."""
     path = Path(path)
-    text = read_text(path, "observation file", "no such observation file")
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: line {exc.lineno}: not valid JSON ({exc.msg})") from None
-    except RecursionError:
-        raise InputError(f"{path}: JSON nested too deeply to be an observation file") from None
-    return parse_snapshot(doc, str(path))
+    return parse_snapshot(load_json(path, "observation file", "no such observation file"), str(path))
 
 
 def snapshot_document(snap: Snapshot) -> dict:
