@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
+from conftest import jittered_xy  # noqa: E402
 from planner.camera import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire  # noqa: E402
 from planner.pipeline import PlanOptions, ReadOptions, make_plan, read_layout  # noqa: E402
@@ -35,13 +37,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def jittered_site(seed: int = 7) -> Layout:
-    """Issue 13's site: 0.6 m lattice, 30 x 16 positions, 20 % empty, moved up to 12 cm, 2.5 m ceiling."""
-    rng = np.random.default_rng(seed)
-    r, c = np.meshgrid(np.arange(16), np.arange(30), indexing="ij")
-    pts = 0.6 * np.column_stack([c.ravel(), r.ravel()]).astype(float)
-    keep = rng.random(len(pts)) >= 0.2
-    pts = pts[keep] + rng.uniform(-0.12, 0.12, (int(keep.sum()), 2))
-    return Layout(tuple(Luminaire(f"J{k:03d}", float(x), float(y), 2.5) for k, (x, y) in enumerate(pts)),
+    """Issue 13's site (``tests/conftest.py``) under a 2.5 m ceiling."""
+    return Layout(tuple(Luminaire(f"J{k:03d}", float(x), float(y), 2.5) for k, (x, y) in enumerate(jittered_xy(seed))),
                   source_path="jittered-30x16.yaml")
 
 

@@ -40,6 +40,15 @@ def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: f
     return pts @ np.array([[cos, sin], [-sin, cos]])
 
 
+def jittered_xy(seed: int = 7) -> np.ndarray:
+    """Issue 13's site: a 0.6 m lattice of 30 x 16 positions, 20 % left empty, the rest moved up to 12 cm [m]."""
+    rng = np.random.default_rng(seed)
+    r, c = np.meshgrid(np.arange(16), np.arange(30), indexing="ij")
+    pts = 0.6 * np.column_stack([c.ravel(), r.ravel()]).astype(float)
+    keep = rng.random(len(pts)) >= 0.2
+    return pts[keep] + rng.uniform(-0.12, 0.12, (int(keep.sum()), 2))
+
+
 def hex_xy(rows: int, cols: int, pitch: float = 1.0) -> np.ndarray:
     """Staggered rows (every other row shifted half a pitch): a triangular lattice."""
     return np.array([(c * pitch + 0.5 * pitch * (r % 2), r * pitch * 0.866) for r in range(rows) for c in range(cols)])

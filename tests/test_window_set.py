@@ -6,10 +6,10 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_xy, hex_xy
+from conftest import ROOT, grid_xy, hex_xy, jittered_xy
 from planner.camera import Camera
-from planner.layout.model import Layout, Luminaire
-from planner.pipeline import PlanOptions, make_plan
+from planner.layout.model import Layout, Luminaire, area_m2
+from planner.pipeline import PlanOptions, make_plan, read_layout
 from planner.verify.proof import envelope
 from planner.verify.verify import AMBIGUOUS, classify, observe
 from planner.verify.window_set import empty_triangles, window_superset
@@ -93,3 +93,45 @@ def test_default_plans_show_no_ambiguous_pose_on_fresh_dense_samples(xy, seed):
         obs = observe(xyz, radii, None, plan.camera, per_m2=10 * POSES_PER_M2, seed=10_000 + 17 * seed + fresh)
         v = classify(obs, plan.assignment.ids)
         assert v.count(AMBIGUOUS) == 0, (plan.assignment.scheme, v.conflicts[:2])
+
+
+@pytest.mark.slow
+def test_the_jittered_site_of_issue_13_is_proved_and_unambiguous_on_fresh_dense_samples():
+    """Issue 13: a 0.6 m lattice of 30 x 16, 20 % empty, moved up to 12 cm, from a seed. The plan
+    is proved (every triangle of the proved set is unlike every other triple of the site), and
+    five fresh samples at ten times the default density, against every triple, find no ambiguity."""
+    xy = jittered_xy(7)
+    layout = Layout(tuple(Luminaire(f"J{k:03d}", float(x), float(y), 2.5) for k, (x, y) in enumerate(xy)))
+    plan = make_plan(layout, PlanOptions(error_poses_per_m2=0))
+    w = plan.verification.window_set
+    assert w.proved and w.complete and w.triangles > 50_000, w.reason
+    assert plan.assignment.scheme == "window" and plan.assignment.bits <= 6
+    xyz, radii = layout.xyz, np.full(len(xy), 0.1)
+    for fresh in range(5):
+        obs = observe(xyz, radii, None, plan.camera, per_m2=10 * POSES_PER_M2, seed=20_000 + fresh)
+        v = classify(obs, plan.assignment.ids)
+        assert v.count(AMBIGUOUS) == 0, v.conflicts[:2]
+        assert v.poses > 500_000
+
+
+BUNDLED = [("grid-32.yaml", None), ("grid-256.yaml", None), ("grid-512.yaml", 512), ("paper-rig.yaml", None),
+           ("corridor.csv", None), ("outline-room.dxf", 128), ("dialux-office.dxf", None)]
+"""Every bundled layout as the README runs it (outline-room.yaml is the same room as the DXF)."""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, leds", BUNDLED, ids=[n for n, _ in BUNDLED])
+def test_default_plans_of_the_bundled_layouts_show_no_ambiguous_pose_on_fresh_dense_samples(name, leds):
+    """Issue 13, first Done-when line, on every bundled layout: five samples at ten times the
+    default density with seeds the planner never used, each window against every triple."""
+    layout = read_layout(ROOT / "layouts" / name, leds)
+    plan = make_plan(layout, PlanOptions(error_poses_per_m2=0))
+    xyz = layout.xyz
+    radii = np.array([lum.radius for lum in layout.luminaires])
+    poses = 0
+    for fresh in range(5):
+        obs = observe(xyz, radii, layout.outline, plan.camera, per_m2=10 * POSES_PER_M2, seed=30_000 + fresh)
+        v = classify(obs, plan.assignment.ids)
+        assert v.count(AMBIGUOUS) == 0, (plan.assignment.scheme, v.conflicts[:2])
+        poses += v.poses
+    assert poses >= 5 * 10 * POSES_PER_M2 * 0.9 * area_m2(working_area(xyz[:, :2], layout.outline))

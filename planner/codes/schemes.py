@@ -1,7 +1,10 @@
 """Schemes beyond the paper's: ``window`` (shortest IDs with every window unique) and ``unique``.
 
 Every fix needs three LEDs, so it is enough that every *window* the camera can
-produce on this layout is unique, not every neighbouring pair. Windows are
+produce on this layout is unique, not every neighbouring pair. Where the window set is
+proved (:mod:`planner.verify.proof`), every pair of a proved window and a triple of the
+site that reads alike but for the labels is listed and the labels are searched against
+exactly those pairs (:mod:`planner.codes.pairwise`), from one bit upward. Elsewhere windows are
 collected from a dense pose sample (:func:`planner.verify.verify.design_windows`, at
 least ``DESIGN_PER_M2``) and joined by every triangle of the window set
 (:mod:`planner.verify.window_set`); IDs are found by :mod:`planner.codes.window`, with every
@@ -18,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from planner.camera import Camera
+from planner.codes import pairwise
 from planner.codes import window as window_code
 from planner.codes.assignment import Assignment, bits_for, tile_regions
 from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, site_triples
@@ -40,9 +44,6 @@ DESIGN_PER_M2 = 2000.0
 
 WIDEN_AFTER = 3
 """Repair passes after which labels are made afresh with one bit more, if rivals remain."""
-
-PROOF_WIDEN_AFTER = 1
-"""... and, designing against a proved window set (whose conflicts arrive many at a time), after this many."""
 
 MAX_READINGS = 200_000
 """Above this many keyed readings of the site's short triples, rivals join the ID search as they are found."""
@@ -126,6 +127,50 @@ def _protected(sampled: np.ndarray, xyz: np.ndarray, radii: np.ndarray, toleranc
     return np.unique(np.sort(np.vstack([sampled, extra]), axis=1), axis=0), bound
 
 
+PROVED_STEPS_PER_LUMINAIRE = 20
+"""Moves a width's min-conflicts search may make, per luminaire (it also stops when it stalls);
+widths whose random labels leave more than half that many conflicts are not tried."""
+
+
+def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
+                   proof: Proof, *, seed: int, per_m2: float, tolerance_m: float,
+                   observations: dict) -> tuple[Assignment, Verification] | None:
+    """The window scheme against a complete window set: every pair that must differ is listed
+    (:mod:`planner.codes.pairwise`), so no sample, key cells or repair rounds are needed.
+    None when the pairs are over :data:`planner.codes.pairwise.ALIKE_BUDGET`."""
+    assert proof.triangles is not None
+    n = len(xyz)
+    pairs = pairwise.alike_pairs(proof.triangles, xyz, tolerance_m)
+    if pairs is None:
+        return None
+    unique_bits = bits_for(n)
+    index = pairwise.Index(n, pairs)
+    labels, k, tried, steps_of = None, n, [], 0
+    max_steps = max(1000, PROVED_STEPS_PER_LUMINAIRE * n)
+    for b in range(1, unique_bits):
+        random = np.random.default_rng([seed, b]).integers(0, 2 ** b, n)
+        if len(pairwise.conflicts(pairs, random)) > max_steps // 2:
+            continue  # more conflicts than the search could mend
+        labels, steps_of = pairwise.search(index, 2 ** b, seed=seed, max_steps=max_steps)
+        tried.append(b)
+        if labels is not None:
+            k = 2 ** b
+            break
+    method = f"min-conflicts against the {len(proof.triangles):,} proved windows"
+    if labels is None:
+        labels, method = np.arange(n, dtype=np.int64), "distinct labels (no shorter labels found)"
+    ids = labels.astype(np.int64) + 1
+    bits = bits_for(max(k, 2))
+    if seed not in observations:
+        observations[seed] = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+    check = classify(observations[seed], ids)
+    detail = {"windows": len(proof.triangles), "alike_pairs": len(pairs), "widths_tried": tried,
+              "steps": int(steps_of), "max_steps": max_steps, "labels": int(k), "optimal": False,
+              "lower_bound_labels": 1}
+    return Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, unique_bits, 1, method,
+                      detail), check
+
+
 def assign_unique(xy: np.ndarray, graph: NeighbourGraph) -> Assignment:
     """One ID per luminaire, 1..N in layout order: the naive scheme."""
     n = len(xy)
@@ -141,10 +186,17 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     """The window scheme, verified: IDs under which no protected window reads like another triple.
 
     Returns the assignment and its final verification (on poses of seed ``seed``).
-    ``observations`` (seed -> :class:`Observation` at ``per_m2``) is filled and reused,
-    so a caller verifying other schemes on the same samples observes each once.
+    With a complete ``proof`` whose alike pairs are within budget the labels are designed
+    against it; otherwise against samples and the empty-triangle set. ``observations``
+    (seed -> :class:`Observation` at ``per_m2``) is filled and reused, so a caller
+    verifying other schemes on the same samples observes each once.
     """
     seen = {} if observations is None else observations
+    if proof is not None and proof.complete:
+        proved = _assign_proved(xyz, radii, outline, graph, camera, proof, seed=seed,
+                                per_m2=per_m2, tolerance_m=tolerance_m, observations=seen)
+        if proved is not None:
+            return proved
 
     def checked(s: int, labels: np.ndarray) -> Verification:
         if s not in seen:
@@ -183,9 +235,6 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
         missed: list[tuple[int, ...]] = []
         check: Verification | None = None
-        if proof is not None and proof.triangles is not None:  # proved windows that read alike join the protected ones
-            missed.extend(tuple(proof.triangles[r]) for r, _ in find_rivals(proof.triangles, xyz, labels + 1,
-                                                                              tolerance_m))
         for s in check_seeds:
             check = checked(s, labels)
             missed.extend(g[0] for g in check.conflicts)  # a sampled window outside the set; rivals follow
@@ -195,8 +244,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         if lazy:
             assert others is not None  # lazy keying starts from the windows and only grows
             others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])
-        widen_after = PROOF_WIDEN_AFTER if proof is not None and proof.complete else WIDEN_AFTER
-        if round_ == widen_after:  # repairs at this width keep making new rivals: one bit more
+        if round_ == WIDEN_AFTER:  # repairs at this width keep making new rivals: one bit more
             new_code, labels, k, problem = solve(min_bits=(k - 1).bit_length() + 1)
         else:
             new_code, labels, k, problem = solve((labels, k))

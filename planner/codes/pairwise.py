@@ -1,0 +1,218 @@
+"""Labels against a complete window set, pair by pair.
+
+Where the window set is proved complete (:mod:`planner.verify.proof`), the IDs need not
+be searched by shape cells (:mod:`planner.codes.window`, a safe over-approximation that
+calls triples up to two tolerances apart alike): the pairs that must differ can be listed
+exactly. A pair is a window and another triple of the site (a window or not) whose sides,
+counter-clockwise in one rotation, each differ by at most the tolerance; the labels are
+valid when no pair has equal labels in all three corresponding places, which is exactly
+the verdict of :func:`planner.codes.rivals.find_rivals`. Labels are found by min-conflicts
+search with a tabu list; budgets are steps, so the result depends on the seed only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from planner.codes.rivals import counter_clockwise, longest_side, site_triples
+
+NOISE = 0.05
+"""Share of steps that move a random luminaire of the chosen conflict (to its best other label)."""
+TABU_STEPS = 10
+"""Steps for which a luminaire may not return to the label it just left."""
+STALL_STEPS = 300
+"""Moves without a new fewest count of conflicts after which a search gives up."""
+ALIKE_BUDGET = 12_000_000
+"""Most (window, triple, rotation) shape matches listed (about 100 bytes each while listing)."""
+_CHUNK = 20_000
+"""Windows whose matches are listed at once."""
+
+
+def _sides(t: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    p = xyz[t]
+    return np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)  # side s joins vertex s and s+1
+
+
+def _canonical(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """One row (a0 a1 a2 b0 b1 b2) per pair, the same for every rotation and either order."""
+    def turned(x, y):  # both turned so that x starts at its smallest luminaire
+        r = np.argmin(x, axis=1)
+        idx = (np.arange(3)[None, :] + r[:, None]) % 3
+        return np.hstack([np.take_along_axis(x, idx, axis=1), np.take_along_axis(y, idx, axis=1)])
+    one, two = turned(a, b), turned(b, a)
+    swap = np.zeros(len(a), dtype=bool)
+    undecided = np.ones(len(a), dtype=bool)
+    for c in range(6):  # lexicographic comparison of the two rows
+        lt, gt = two[:, c] < one[:, c], two[:, c] > one[:, c]
+        swap |= undecided & lt
+        undecided &= ~(lt | gt)
+    return np.where(swap[:, None], two, one)
+
+
+def alike_pairs(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, site: np.ndarray | None = None,
+                budget: int = ALIKE_BUDGET) -> np.ndarray | None:
+    """Every pair (window, other triple) that reads alike whenever the labels agree.
+
+    ``windows`` (M x 3 luminaire indices), ``xyz`` (N x 3 [m]), ``tolerance_m`` the largest
+    side difference the receiver cannot tell apart [m]; ``site`` the triples a window must
+    not read like (default: every triple short enough). Returns (P x 6) int64 rows
+    ``a0 a1 a2 b0 b1 b2``: ``a`` reads like ``b`` when label ``a_j`` equals label ``b_j`` for
+    every ``j``. Each pair appears once, whatever its rotation or order. None when more than
+    ``budget`` (window, triple, rotation) matches are found.
+    """
+    windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
+    if len(windows) == 0:
+        return np.empty((0, 6), dtype=np.int64)
+    if site is None:
+        site = site_triples(xyz[:, :2], longest_side(windows, xyz) + tolerance_m + 1e-9)
+    win = counter_clockwise(windows, xyz[:, :2])
+    other = counter_clockwise(np.asarray(site, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
+    tree = cKDTree(_sides(other, xyz))
+    parts, found = [], 0
+    for r in range(3):
+        for start in range(0, len(win), _CHUNK):
+            w = np.roll(win[start:start + _CHUNK], -r, axis=1)
+            hits = tree.query_ball_point(_sides(w, xyz), tolerance_m + 1e-9, p=np.inf, return_sorted=False)
+            n = np.fromiter(map(len, hits), np.int64, len(hits))
+            found += int(n.sum())
+            if found > budget:
+                return None
+            u = other[np.fromiter((j for h in hits for j in h), np.int64, int(n.sum()))]
+            a = np.repeat(w, n, axis=0)
+            differ = (np.sort(a, axis=1) != np.sort(u, axis=1)).any(axis=1)
+            parts.append(_unique_rows(_canonical(a[differ], u[differ]), len(xyz)))
+    return _unique_rows(np.concatenate(parts), len(xyz))
+
+
+def _unique_rows(rows: np.ndarray, n: int) -> np.ndarray:
+    """``np.unique(rows, axis=0)`` for rows of six indices below ``n``; one int64 key each when they fit."""
+    if n ** 6 >= 2 ** 63:
+        return np.unique(rows, axis=0)
+    key = np.zeros(len(rows), dtype=np.int64)
+    for c in range(6):
+        key = key * n + rows[:, c]
+    key = np.unique(key)
+    out = np.empty((len(key), 6), dtype=np.int64)
+    for c in range(5, -1, -1):
+        key, out[:, c] = np.divmod(key, n)
+    return out
+
+
+def conflicts(pairs: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Rows of ``pairs`` whose two triples have equal labels in all three places."""
+    lab = np.asarray(labels, dtype=np.int64)
+    return np.flatnonzero((lab[pairs[:, :3]] == lab[pairs[:, 3:]]).all(axis=1))
+
+
+class Index:
+    """Where each luminaire sits in the pairs (built once, for any number of labels), and the
+    cost of each label for one luminaire.
+
+    For a luminaire in one place of a pair, the pair conflicts after a move exactly when its
+    other two places agree and the new label is the partner's: so each such entry keeps the
+    four luminaires of the other places and the partner (int32). Pairs that hold a luminaire
+    in two places that do not face each other are scored in full.
+    """
+
+    def __init__(self, n: int, pairs: np.ndarray):
+        pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 6)
+        self.n, self.P = n, pairs
+        srt = np.sort(pairs, axis=1)
+        facing = (pairs[:, :3] == pairs[:, 3:]).sum(axis=1)
+        full = (srt[:, 1:] == srt[:, :-1]).sum(axis=1) > facing
+        m = np.repeat(np.arange(len(pairs)), 6)
+        col = np.tile(np.arange(6), len(pairs))
+        lum = pairs.reshape(-1)
+        partner = pairs[m, (col + 3) % 6]
+        keep = (lum != partner) & ~full[m]  # a luminaire facing itself agrees whatever its label
+        m, col, lum, partner = m[keep], col[keep], lum[keep], partner[keep]
+        order = np.argsort(lum, kind="stable")
+        m, col, partner = m[order], col[order], partner[order]
+        j1, j2 = (col + 1) % 3, (col + 2) % 3
+        self.other = np.column_stack([pairs[m, j1], pairs[m, j1 + 3], pairs[m, j2], pairs[m, j2 + 3]]).astype(np.int32)
+        self.partner = partner.astype(np.int32)
+        self.row = m
+        self.start = np.searchsorted(lum[order], np.arange(n + 1))
+        fm = np.flatnonzero(full)
+        held = np.unique(np.column_stack([pairs[fm].reshape(-1), np.repeat(fm, 6)]), axis=0)  # (luminaire, row)
+        self.full_row = held[:, 1]
+        self.full_start = np.searchsorted(held[:, 0], np.arange(n + 1))
+
+    def cost(self, i: int, lab: np.ndarray, K: int) -> np.ndarray:
+        """Pairs in conflict among those holding luminaire ``i``, for each label 0..K-1 of ``i`` (K,)."""
+        s, e = self.start[i], self.start[i + 1]
+        o = lab[self.other[s:e]]
+        ready = (o[:, 0] == o[:, 1]) & (o[:, 2] == o[:, 3])  # the other two places agree: i's label decides
+        out = np.bincount(lab[self.partner[s:e][ready]], minlength=K)[:K]
+        full = self.full_row[self.full_start[i]:self.full_start[i + 1]]
+        if len(full):
+            trial = np.repeat(lab[self.P[full]][:, None, :], K, axis=1)  # (F, K, 6)
+            mine = np.broadcast_to((self.P[full] == i)[:, None, :], trial.shape)
+            trial[mine] = np.broadcast_to(np.arange(K)[None, :, None], trial.shape)[mine]
+            out = out + (trial[..., :3] == trial[..., 3:]).all(axis=2).sum(axis=0)
+        return out
+
+    def rows_of(self, i: int) -> np.ndarray:
+        """Every pair holding luminaire ``i`` (some more than once)."""
+        return np.concatenate([self.row[self.start[i]:self.start[i + 1]],
+                               self.full_row[self.full_start[i]:self.full_start[i + 1]]])
+
+
+def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stall_steps: int = STALL_STEPS,
+           labels: np.ndarray | None = None) -> tuple[np.ndarray | None, int]:
+    """Labels 0..K-1 of the ``index.n`` luminaires with no pair of the index in conflict
+    (or None), and the steps taken.
+
+    Min-conflicts: take a conflicting pair, move the one of its luminaires whose best other
+    label removes most conflicts (ties and, with probability ``NOISE``, the luminaire at
+    random), never back to a label left within ``TABU_STEPS`` steps. ``labels`` is the start
+    (default: random); at most ``max_steps`` moves, and none once ``stall_steps`` moves have
+    not lowered the fewest conflicts seen.
+    """
+    rng = np.random.default_rng([seed, K])
+    P = index.P
+    lab = (rng.integers(0, K, index.n) if labels is None else np.array(labels)).astype(np.int64)
+    if len(P) == 0:
+        return lab, 0
+    if K < 2:
+        return (lab if len(conflicts(P, lab)) == 0 else None), 0
+    s = index
+    bad = set(conflicts(P, lab).tolist())
+    tabu: dict[tuple[int, int], int] = {}
+    fewest, since = len(bad), 0
+    for step in range(max_steps):
+        if not bad:
+            return lab, step
+        if len(bad) < fewest:
+            fewest, since = len(bad), step
+        elif step - since > stall_steps:
+            return None, step
+        m = list(bad)[int(rng.integers(len(bad)))] if len(bad) < 64 else rng.choice(list(bad))
+        cands = np.unique(P[m])
+        if rng.random() < NOISE:
+            cands = cands[[int(rng.integers(len(cands)))]]
+        best: tuple[float, int, int] | None = None
+        for i in cands.tolist():
+            c = s.cost(i, lab, K).astype(float)
+            c = c - c[lab[i]]
+            c[lab[i]] = np.inf
+            for k, until in ((k, u) for (v, k), u in tabu.items() if v == i):
+                if until > step:
+                    c[k] = np.inf
+            k = int(np.argmin(c + rng.random(K) * 1e-3))
+            if best is None or c[k] < best[0]:
+                best = (c[k], i, k)
+        assert best is not None
+        _, i, k = best
+        if not np.isfinite(best[0]):
+            continue
+        tabu[(i, int(lab[i]))] = step + TABU_STEPS
+        lab[i] = k
+        rows = s.rows_of(i)
+        now = (lab[P[rows, :3]] == lab[P[rows, 3:]]).all(axis=1)
+        bad.difference_update(rows[~now].tolist())
+        bad.update(rows[now].tolist())
+        if len(tabu) > 4 * TABU_STEPS:
+            tabu = {key: u for key, u in tabu.items() if u > step}
+    return (lab if not bad else None), max_steps
