@@ -165,31 +165,40 @@ def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: 
     return project_discs_at(poses.position, poses.rotation, centres, radii, camera)
 
 
+def disc_conics(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                camera: Camera) -> np.ndarray:
+    """Dual conics ``C* = H diag(r^2, r^2, -1) H^T`` of horizontal discs' exact images (..., K, 3, 3).
+
+    The one disc-image model: ``H = K R^T [x y (c - p)]`` maps the disc's plane (site x, y
+    axes through its centre ``c``) to the image, for camera centres ``position`` (..., 3) [m]
+    and camera-to-site rotations ``rotation`` (..., 3, 3); ``centres`` (..., K, 3) [m] and
+    ``radii`` broadcastable to (..., K) [m].
+    """
+    kr = camera.intrinsics @ np.swapaxes(rotation, -1, -2)  # (..., 3, 3): K R^T
+    h1, h2 = kr[..., None, :, 0], kr[..., None, :, 1]  # (..., 1, 3): images of the site x and y axes
+    h3 = np.einsum("...ij,...kj->...ki", kr, centres - position[..., None, :])  # (..., K, 3)
+    r2 = (np.asarray(radii, float) ** 2)[..., None, None]
+    base = h1[..., :, None] * h1[..., None, :] + h2[..., :, None] * h2[..., None, :]
+    return r2 * base - h3[..., :, None] * h3[..., None, :]
+
+
 def project_discs_at(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
                      camera: Camera) -> dict:
     """:func:`project_discs` for camera centres (P, 3) [m] and camera-to-site rotations (P, 3, 3)."""
     rot_t = np.swapaxes(rotation, 1, 2)  # site -> camera
     c_cam = np.einsum("pij,pkj->pki", rot_t, centres - position[:, None, :])
-    kmat = camera.intrinsics
-    # Columns of H = K [a b c]: a, b the site x and y axes in camera coordinates (per pose).
-    h1 = (rot_t[:, :, 0] @ kmat.T)[:, None, :]
-    h2 = (rot_t[:, :, 1] @ kmat.T)[:, None, :]
-    h3 = c_cam @ kmat.T
-    r2 = radii**2
-
-    def cstar(i: int, j: int) -> np.ndarray:
-        return r2 * (h1[..., i] * h1[..., j] + h2[..., i] * h2[..., j]) - h3[..., i] * h3[..., j]
-
+    cs = disc_conics(position, rotation, centres, radii, camera)
     depth = c_cam[..., 2]
     rim_depth = radii * np.hypot(rot_t[:, 2, 0], rot_t[:, 2, 1])[:, None]
     in_front = depth - rim_depth > 1e-9
-    c22 = cstar(2, 2)
+    c22 = cs[..., 2, 2]
+    h3 = c_cam @ camera.intrinsics.T
     with np.errstate(invalid="ignore", divide="ignore"):
         u = h3[..., 0] / h3[..., 2]
         v = h3[..., 1] / h3[..., 2]
         inside = in_front.copy()
         for axis, size in ((0, camera.width_px), (1, camera.height_px)):
-            c00, c02 = cstar(axis, axis), cstar(axis, 2)
+            c00, c02 = cs[..., axis, axis], cs[..., axis, 2]
             disc = np.sqrt(np.maximum(c02**2 - c00 * c22, 0.0))
             lo, hi = (c02 - disc) / c22, (c02 + disc) / c22
             inside &= (np.minimum(lo, hi) >= 0) & (np.maximum(lo, hi) <= size)
@@ -198,14 +207,9 @@ def project_discs_at(position: np.ndarray, rotation: np.ndarray, centres: np.nda
 
 def disc_dual_conic(position: np.ndarray, rotation: np.ndarray, centre: np.ndarray, radius_m,
                     camera: Camera) -> np.ndarray:
-    """Dual conics of horizontal LED discs' exact images, as in :func:`project_discs`.
-
-    One camera (centre [m], camera-to-site rotation 3 x 3); ``centre`` (3,) or (N, 3) [m]
-    and ``radius_m`` scalar or (N,) [m]; returns (3, 3) or (N, 3, 3).
-    """
-    rot_t = np.asarray(rotation, float).T
-    kmat = camera.intrinsics
-    h1, h2 = kmat @ rot_t[:, 0], kmat @ rot_t[:, 1]
-    h3 = (np.asarray(centre, float) - position) @ (kmat @ rot_t).T
-    r2 = np.asarray(radius_m, float)[..., None, None] ** 2
-    return r2 * (np.outer(h1, h1) + np.outer(h2, h2)) - h3[..., :, None] * h3[..., None, :]
+    """:func:`disc_conics` for one camera (centre [m], camera-to-site rotation 3 x 3);
+    ``centre`` (3,) or (N, 3) [m] and ``radius_m`` scalar or (N,) [m]; returns (3, 3) or (N, 3, 3)."""
+    c = np.asarray(centre, float)
+    out = disc_conics(np.asarray(position, float), np.asarray(rotation, float), c.reshape(-1, 3),
+                      np.broadcast_to(np.asarray(radius_m, float), c.shape[:-1]).reshape(-1), camera)
+    return out[0] if c.ndim == 1 else out

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera, Poses
+from planner.camera import Camera, Poses, disc_conics
 from planner.defaults import DRIVER_MAX_HZ
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
@@ -70,16 +70,8 @@ class Timing:
 
 def image_rows(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: Camera) -> np.ndarray:
     """Height [rows] of the exact images of horizontal discs: ``centres`` (P, K, 3), ``radii`` (P, K)."""
-    rot_t = np.swapaxes(poses.rotation, 1, 2)
-    kmat = camera.intrinsics
-    h1 = (rot_t[:, :, 0] @ kmat.T)[:, None, :]
-    h2 = (rot_t[:, :, 1] @ kmat.T)[:, None, :]
-    h3 = np.einsum("pij,pkj->pki", kmat @ rot_t, centres - poses.position[:, None, :])
-
-    def c(i, j):
-        return radii**2 * (h1[..., i] * h1[..., j] + h2[..., i] * h2[..., j]) - h3[..., i] * h3[..., j]
-
-    return 2 * np.sqrt(np.maximum(c(1, 2) ** 2 - c(1, 1) * c(2, 2), 0.0)) / np.abs(c(2, 2))
+    c = disc_conics(poses.position, poses.rotation, centres, radii, camera)
+    return 2 * np.sqrt(np.maximum(c[..., 1, 2] ** 2 - c[..., 1, 1] * c[..., 2, 2], 0.0)) / np.abs(c[..., 2, 2])
 
 
 def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, seed: int = 0) -> float:

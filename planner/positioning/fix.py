@@ -13,7 +13,7 @@ from itertools import combinations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from planner.camera import Camera, rotation_from_angles
+from planner.camera import Camera, disc_conics, rotation_from_angles
 from planner.ellipse import Ellipse, centre_and_shape
 from planner.errors import PositioningError
 
@@ -102,13 +102,8 @@ def residuals_batch(x: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii:
     """Ellipse residuals for B poses ``x`` (B x 6): ``rotation`` turned by the rotation vector
     ``x[:3]`` (camera frame), camera centre ``x[3:]`` [m]; LEDs not imaged as ellipses get a large residual."""
     rot = rotation @ Rotation.from_rotvec(x[:, :3]).as_matrix()  # (B, 3, 3) camera-to-site
-    kr = camera.intrinsics @ np.swapaxes(rot, 1, 2)  # (B, 3, 3): K R^T
-    h1, h2 = kr[:, :, 0], kr[:, :, 1]
     rel = xyz[None] - x[:, None, 3:]
-    h3 = np.einsum("bij,bnj->bni", kr, rel)
-    r2 = (radii**2)[None, :, None, None]
-    base = (h1[:, :, None] * h1[:, None, :] + h2[:, :, None] * h2[:, None, :])[:, None]
-    c, m, ok = centre_and_shape(r2 * base - h3[..., :, None] * h3[..., None, :])
+    c, m, ok = centre_and_shape(disc_conics(x[:, 3:], rot, np.broadcast_to(xyz, rel.shape), radii, camera))
     ok &= np.einsum("bni,bi->bn", rel, rot[:, :, 2]) > radii
     res = np.concatenate([c - centres, m[..., 0, 0:2] - shapes[:, 0, 0:2], m[..., 1, 1:2] - shapes[:, 1, 1:2]], axis=2)
     res[~ok] = BAD_PX
