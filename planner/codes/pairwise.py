@@ -12,6 +12,8 @@ search with a tabu list; budgets are steps, so the result depends on the seed on
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -78,7 +80,7 @@ def alike_pairs(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, site: 
             found += int(n.sum())
             if found > budget:
                 return None
-            u = other[np.fromiter((j for h in hits for j in h), np.int64, int(n.sum()))]
+            u = other[np.fromiter(chain.from_iterable(hits), np.int64, int(n.sum()))]
             a = np.repeat(w, n, axis=0)
             differ = (np.sort(a, axis=1) != np.sort(u, axis=1)).any(axis=1)
             parts.append(_unique_rows(_canonical(a[differ], u[differ]), len(xyz)))
@@ -123,7 +125,7 @@ class Index:
         full = (srt[:, 1:] == srt[:, :-1]).sum(axis=1) > facing
         m = np.repeat(np.arange(len(pairs)), 6)
         col = np.tile(np.arange(6), len(pairs))
-        lum = pairs.reshape(-1)
+        lum = pairs.reshape(-1).astype(np.int32)
         partner = pairs[m, (col + 3) % 6]
         keep = (lum != partner) & ~full[m]  # a luminaire facing itself agrees whatever its label
         m, col, lum, partner = m[keep], col[keep], lum[keep], partner[keep]
@@ -179,6 +181,7 @@ def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stal
         return (lab if len(conflicts(P, lab)) == 0 else None), 0
     s = index
     bad = set(conflicts(P, lab).tolist())
+    pool = list(bad)  # every conflicting pair, and some that no longer conflict (dropped when drawn)
     tabu: dict[tuple[int, int], int] = {}
     fewest, since = len(bad), 0
     for step in range(max_steps):
@@ -188,7 +191,13 @@ def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stal
             fewest, since = len(bad), step
         elif step - since > stall_steps:
             return None, step
-        m = list(bad)[int(rng.integers(len(bad)))] if len(bad) < 64 else rng.choice(list(bad))
+        while True:  # a conflicting pair, uniformly: draw from the pool, dropping stale entries
+            at = int(rng.integers(len(pool)))
+            m = pool[at]
+            if m in bad:
+                break
+            pool[at] = pool[-1]
+            pool.pop()
         cands = np.unique(P[m])
         if rng.random() < NOISE:
             cands = cands[[int(rng.integers(len(cands)))]]
@@ -212,7 +221,9 @@ def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stal
         rows = s.rows_of(i)
         now = (lab[P[rows, :3]] == lab[P[rows, 3:]]).all(axis=1)
         bad.difference_update(rows[~now].tolist())
-        bad.update(rows[now].tolist())
+        new = [r for r in rows[now].tolist() if r not in bad]
+        bad.update(new)
+        pool.extend(new)
         if len(tabu) > 4 * TABU_STEPS:
             tabu = {key: u for key, u in tabu.items() if u > step}
     return (lab if not bad else None), max_steps
