@@ -165,40 +165,59 @@ def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: 
     return project_discs_at(poses.position, poses.rotation, centres, radii, camera)
 
 
+def _disc_terms(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Columns of ``H = K R^T [x y (c - p)]``, the map from a disc's plane (site x, y axes
+    through its centre ``c``) to the image: ``h1``, ``h2`` (..., 1, 3), ``h3`` (..., K, 3), and
+    ``r^2`` (..., K) [m^2]; shapes as in :func:`disc_conics`."""
+    kr = camera.intrinsics @ np.swapaxes(rotation, -1, -2)  # (..., 3, 3): K R^T
+    h3 = np.einsum("...ij,...kj->...ki", kr, centres - position[..., None, :])
+    return kr[..., None, :, 0], kr[..., None, :, 1], h3, np.asarray(radii, float) ** 2
+
+
+def _conic_entry(terms: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], i: int, j: int) -> np.ndarray:
+    """Entry ``(i, j)`` of the dual conics of :func:`disc_conics`, alone (the hot paths need five)."""
+    h1, h2, h3, r2 = terms
+    return r2 * (h1[..., i] * h1[..., j] + h2[..., i] * h2[..., j]) - h3[..., i] * h3[..., j]
+
+
 def disc_conics(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
                 camera: Camera) -> np.ndarray:
     """Dual conics ``C* = H diag(r^2, r^2, -1) H^T`` of horizontal discs' exact images (..., K, 3, 3).
 
-    The one disc-image model: ``H = K R^T [x y (c - p)]`` maps the disc's plane (site x, y
-    axes through its centre ``c``) to the image, for camera centres ``position`` (..., 3) [m]
+    The one disc-image model (:func:`_disc_terms`), for camera centres ``position`` (..., 3) [m]
     and camera-to-site rotations ``rotation`` (..., 3, 3); ``centres`` (..., K, 3) [m] and
     ``radii`` broadcastable to (..., K) [m].
     """
-    kr = camera.intrinsics @ np.swapaxes(rotation, -1, -2)  # (..., 3, 3): K R^T
-    h1, h2 = kr[..., None, :, 0], kr[..., None, :, 1]  # (..., 1, 3): images of the site x and y axes
-    h3 = np.einsum("...ij,...kj->...ki", kr, centres - position[..., None, :])  # (..., K, 3)
-    r2 = (np.asarray(radii, float) ** 2)[..., None, None]
+    h1, h2, h3, r2 = _disc_terms(position, rotation, centres, radii, camera)
     base = h1[..., :, None] * h1[..., None, :] + h2[..., :, None] * h2[..., None, :]
-    return r2 * base - h3[..., :, None] * h3[..., None, :]
+    return r2[..., None, None] * base - h3[..., :, None] * h3[..., None, :]
+
+
+def disc_image_rows(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                    camera: Camera) -> np.ndarray:
+    """Height [rows] of the exact images of horizontal discs, shapes as in :func:`disc_conics`."""
+    t = _disc_terms(position, rotation, centres, radii, camera)
+    c11, c12, c22 = _conic_entry(t, 1, 1), _conic_entry(t, 1, 2), _conic_entry(t, 2, 2)
+    return 2 * np.sqrt(np.maximum(c12**2 - c11 * c22, 0.0)) / np.abs(c22)
 
 
 def project_discs_at(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
                      camera: Camera) -> dict:
     """:func:`project_discs` for camera centres (P, 3) [m] and camera-to-site rotations (P, 3, 3)."""
     rot_t = np.swapaxes(rotation, 1, 2)  # site -> camera
-    c_cam = np.einsum("pij,pkj->pki", rot_t, centres - position[:, None, :])
-    cs = disc_conics(position, rotation, centres, radii, camera)
-    depth = c_cam[..., 2]
+    terms = _disc_terms(position, rotation, centres, radii, camera)
+    h3 = terms[2]
+    depth = np.einsum("pj,pkj->pk", rot_t[:, 2], centres - position[:, None, :])
     rim_depth = radii * np.hypot(rot_t[:, 2, 0], rot_t[:, 2, 1])[:, None]
     in_front = depth - rim_depth > 1e-9
-    c22 = cs[..., 2, 2]
-    h3 = c_cam @ camera.intrinsics.T
+    c22 = _conic_entry(terms, 2, 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         u = h3[..., 0] / h3[..., 2]
         v = h3[..., 1] / h3[..., 2]
         inside = in_front.copy()
         for axis, size in ((0, camera.width_px), (1, camera.height_px)):
-            c00, c02 = cs[..., axis, axis], cs[..., axis, 2]
+            c00, c02 = _conic_entry(terms, axis, axis), _conic_entry(terms, axis, 2)
             disc = np.sqrt(np.maximum(c02**2 - c00 * c22, 0.0))
             lo, hi = (c02 - disc) / c22, (c02 + disc) / c22
             inside &= (np.minimum(lo, hi) >= 0) & (np.maximum(lo, hi) <= size)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera, Poses, disc_conics
+from planner.camera import Camera, disc_image_rows
 from planner.defaults import DRIVER_MAX_HZ
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
@@ -68,12 +68,6 @@ class Timing:
                               "driver_max": round(self.driver_max_hz, 3)}}
 
 
-def image_rows(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: Camera) -> np.ndarray:
-    """Height [rows] of the exact images of horizontal discs: ``centres`` (P, K, 3), ``radii`` (P, K)."""
-    c = disc_conics(poses.position, poses.rotation, centres, radii, camera)
-    return 2 * np.sqrt(np.maximum(c[..., 1, 2] ** 2 - c[..., 1, 1] * c[..., 2, 2], 0.0)) / np.abs(c[..., 2, 2])
-
-
 def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, seed: int = 0) -> float:
     """Rows of the smallest LED image in any window over sampled poses (the farthest working distance)."""
     area = working_area(xyz[:, :2], outline)
@@ -86,7 +80,7 @@ def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, outline, came
                             "check the luminaire spacing against the camera (docs/camera.md)")
     sub = poses.subset(np.flatnonzero(ok))
     t = win.triples[ok]
-    return float(image_rows(sub, xyz[t], radii[t], camera).min())
+    return float(disc_image_rows(sub.position, sub.rotation, xyz[t], radii[t], camera).min())
 
 
 def _three_digits(rate: float) -> float:
