@@ -17,7 +17,7 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.codes.rivals import counter_clockwise, longest_side, site_triples
+from planner.codes.rivals import counter_clockwise, longest_side, sides, site_triples
 
 NOISE = 0.05
 """Share of steps that move a random luminaire of the chosen conflict (to its best other label)."""
@@ -29,11 +29,6 @@ ALIKE_BUDGET = 12_000_000
 """Most (window, triple, rotation) shape matches listed (about 100 bytes each while listing)."""
 _CHUNK = 20_000
 """Windows whose matches are listed at once."""
-
-
-def _sides(t: np.ndarray, xyz: np.ndarray) -> np.ndarray:
-    p = xyz[t]
-    return np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)  # side s joins vertex s and s+1
 
 
 def _canonical(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -70,12 +65,12 @@ def alike_pairs(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, site: 
         site = site_triples(xyz[:, :2], longest_side(windows, xyz) + tolerance_m + 1e-9)
     win = counter_clockwise(windows, xyz[:, :2])
     other = counter_clockwise(np.asarray(site, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
-    tree = cKDTree(_sides(other, xyz))
+    tree = cKDTree(sides(other, xyz))
     parts, found = [], 0
     for r in range(3):
         for start in range(0, len(win), _CHUNK):
             w = np.roll(win[start:start + _CHUNK], -r, axis=1)
-            hits = tree.query_ball_point(_sides(w, xyz), tolerance_m + 1e-9, p=np.inf, return_sorted=False)
+            hits = tree.query_ball_point(sides(w, xyz), tolerance_m + 1e-9, p=np.inf, return_sorted=False)
             n = np.fromiter(map(len, hits), np.int64, len(hits))
             found += int(n.sum())
             if found > budget:
@@ -161,25 +156,24 @@ class Index:
                                self.full_row[self.full_start[i]:self.full_start[i + 1]]])
 
 
-def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stall_steps: int = STALL_STEPS,
-           labels: np.ndarray | None = None) -> tuple[np.ndarray | None, int]:
+def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000,
+           stall_steps: int = STALL_STEPS) -> tuple[np.ndarray | None, int]:
     """Labels 0..K-1 of the ``index.n`` luminaires with no pair of the index in conflict
     (or None), and the steps taken.
 
     Min-conflicts: take a conflicting pair, move the one of its luminaires whose best other
     label removes most conflicts (ties and, with probability ``NOISE``, the luminaire at
-    random), never back to a label left within ``TABU_STEPS`` steps. ``labels`` is the start
-    (default: random); at most ``max_steps`` moves, and none once ``stall_steps`` moves have
+    random), never back to a label left within ``TABU_STEPS`` steps. From seeded random
+    labels; at most ``max_steps`` moves, and none once ``stall_steps`` moves have
     not lowered the fewest conflicts seen.
     """
     rng = np.random.default_rng([seed, K])
     P = index.P
-    lab = (rng.integers(0, K, index.n) if labels is None else np.array(labels)).astype(np.int64)
+    lab = rng.integers(0, K, index.n).astype(np.int64)
     if len(P) == 0:
         return lab, 0
     if K < 2:
         return (lab if len(conflicts(P, lab)) == 0 else None), 0
-    s = index
     bad = set(conflicts(P, lab).tolist())
     pool = list(bad)  # every conflicting pair, and some that no longer conflict (dropped when drawn)
     tabu: dict[tuple[int, int], int] = {}
@@ -203,7 +197,7 @@ def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stal
             cands = cands[[int(rng.integers(len(cands)))]]
         best: tuple[float, int, int] | None = None
         for i in cands.tolist():
-            c = s.cost(i, lab, K).astype(float)
+            c = index.cost(i, lab, K).astype(float)
             c = c - c[lab[i]]
             c[lab[i]] = np.inf
             for k, until in ((k, u) for (v, k), u in tabu.items() if v == i):
@@ -218,7 +212,7 @@ def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000, stal
             continue
         tabu[(i, int(lab[i]))] = step + TABU_STEPS
         lab[i] = k
-        rows = s.rows_of(i)
+        rows = index.rows_of(i)
         now = (lab[P[rows, :3]] == lab[P[rows, 3:]]).all(axis=1)
         bad.difference_update(rows[~now].tolist())
         new = [r for r in rows[now].tolist() if r not in bad]

@@ -47,12 +47,15 @@ def triples_of_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate(out) if out else np.empty((0, 3), dtype=np.int64)
 
 
+def sides(triples: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """Side lengths (M x 3) [m] of ``triples`` (M x 3 indices into ``xyz``): side s joins vertex s and s+1."""
+    p = xyz[np.asarray(triples, dtype=np.int64).reshape(-1, 3)]
+    return np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)
+
+
 def longest_side(triples: np.ndarray, xyz: np.ndarray) -> float:
     """Longest side of any of ``triples`` (M x 3 indices into ``xyz``) [m]; 0 for none."""
-    if len(triples) == 0:
-        return 0.0
-    p = xyz[np.asarray(triples, dtype=np.int64).reshape(-1, 3)]
-    return float(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).max())
+    return float(sides(triples, xyz).max()) if len(triples) else 0.0
 
 
 def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
@@ -74,19 +77,18 @@ class _Readings:
 def _readings(triples: np.ndarray, xyz: np.ndarray, ids: np.ndarray) -> _Readings:
     t = counter_clockwise(np.asarray(triples, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
     k = int(ids.max()) + 1
-    codes, sides, trip, rows = [], [], [], []
+    codes, lengths, trip, rows = [], [], [], []
     rot = [np.roll(t, -r, axis=1) for r in range(3)]
     c = [(ids[x[:, 0]] * k + ids[x[:, 1]]) * k + ids[x[:, 2]] for x in rot]
     best = np.minimum(np.minimum(c[0], c[1]), c[2])
     for r in range(3):  # several rotations tie only when the three IDs are equal
         keep = c[r] == best
         x = rot[r][keep]
-        p = xyz[x]
         codes.append(c[r][keep])
-        sides.append(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2))  # side s joins vertex s and s+1
+        lengths.append(sides(x, xyz))
         trip.append(x)
         rows.append(np.flatnonzero(keep))
-    return _Readings(np.concatenate(codes), np.concatenate(sides), np.concatenate(trip), np.concatenate(rows))
+    return _Readings(np.concatenate(codes), np.concatenate(lengths), np.concatenate(trip), np.concatenate(rows))
 
 
 def find_rivals(windows: np.ndarray, xyz: np.ndarray, ids: np.ndarray, tolerance_m: float,

@@ -24,7 +24,7 @@ from planner.camera import Camera
 from planner.codes import pairwise
 from planner.codes import window as window_code
 from planner.codes.assignment import Assignment, bits_for, tile_regions
-from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, site_triples
+from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, sides, site_triples
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
 from planner.layout.model import area_m2
@@ -51,6 +51,12 @@ MAX_READINGS = 200_000
 DESIGN_MAX_POSES = 2_000_000
 """Cap on the design sample, for very large sites."""
 
+PROVED_STEPS_PER_LUMINAIRE = 20
+"""Against a proved set: moves a width's min-conflicts search may make, per luminaire (it also stops when it stalls)."""
+
+HOPELESS_PER_LUMINAIRE = 2
+"""Against a proved set: widths whose random labels leave more conflicting pairs than this per luminaire are not tried."""
+
 
 def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
            others: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -66,8 +72,6 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
     windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
     if len(windows) == 0:
         return windows, np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, bool)
-    def side(t):
-        return np.linalg.norm(xyz[np.roll(t, -1, axis=1)] - xyz[t], axis=2)  # side s joins s, s+1
     longest = longest_side(windows, xyz)
     if others is None:
         others = site_triples(xyz[:, :2], longest + tolerance_m + 1e-9)
@@ -82,14 +86,14 @@ def _keyed(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
         return code(c) <= np.minimum(code(np.roll(c, -1, axis=-1)), code(np.roll(c, -2, axis=-1)))
 
     # windows: their own cell, in the rotation that makes it canonical
-    cells = np.floor(side(win) / tolerance_m).astype(np.int64)
+    cells = np.floor(sides(win, xyz) / tolerance_m).astype(np.int64)
     rot = np.argmin(np.stack([code(np.roll(cells, -r, axis=1)) for r in range(3)], axis=1), axis=1)
     idx = (np.arange(3)[None, :] + rot[:, None]) % 3
     act_t = np.take_along_axis(win, idx, axis=1)
     act_c = code(np.take_along_axis(cells, idx, axis=1))
     held = np.unique(act_c)
     # every short triple, every rotation, every neighbouring cell that holds a window
-    s_cells = np.floor(side(site) / tolerance_m).astype(np.int64)
+    s_cells = np.floor(sides(site, xyz) / tolerance_m).astype(np.int64)
     offsets = np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij")).reshape(3, -1).T
     pas_t_parts: list[np.ndarray] = []
     pas_c_parts: list[np.ndarray] = []
@@ -125,12 +129,6 @@ def _protected(sampled: np.ndarray, xyz: np.ndarray, radii: np.ndarray, toleranc
     bound = longest_side(sampled, xyz) + tolerance_m
     extra = window_superset(xyz, radii, bound, install_tolerance_m)
     return np.unique(np.sort(np.vstack([sampled, extra]), axis=1), axis=0), bound
-
-
-PROVED_STEPS_PER_LUMINAIRE = 20
-"""Moves a width's min-conflicts search may make, per luminaire (it also stops when it stalls)."""
-HOPELESS_PER_LUMINAIRE = 2
-"""Widths whose random labels leave more conflicting pairs than this per luminaire are not tried."""
 
 
 def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
