@@ -13,6 +13,7 @@ search with a tabu list; budgets are steps, so the result depends on the seed on
 from __future__ import annotations
 
 from itertools import chain
+from typing import Protocol
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -155,44 +156,74 @@ class Index:
         return np.concatenate([self.row[self.start[i]:self.start[i + 1]],
                                self.full_row[self.full_start[i]:self.full_start[i + 1]]])
 
+    # The protocol that :func:`search` uses (a unit is a pair).
 
-def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000,
+    def begin(self, lab: np.ndarray) -> tuple[int, list[int]]:
+        """The number of conflicts under ``lab`` and the units in conflict."""
+        bad = conflicts(self.P, lab)
+        return len(bad), bad.tolist()
+
+    def holders(self, unit: int) -> np.ndarray:
+        return np.unique(self.P[unit])
+
+    def in_conflict(self, unit: int, lab: np.ndarray) -> bool:
+        return bool((lab[self.P[unit, :3]] == lab[self.P[unit, 3:]]).all())
+
+    def moved(self, i: int, old: int, lab: np.ndarray) -> list[int]:
+        """Luminaire ``i`` left label ``old`` for ``lab[i]``: the units holding it now in conflict."""
+        rows = np.unique(self.rows_of(i))
+        return rows[(lab[self.P[rows, :3]] == lab[self.P[rows, 3:]]).all(axis=1)].tolist()
+
+
+class ConflictIndex(Protocol):
+    """What :func:`search` needs of an index: conflicts are counted between *units* (a pair of
+    triples here; a congruence class's members in :mod:`planner.codes.classes`)."""
+
+    n: int
+
+    def begin(self, lab: np.ndarray) -> tuple[int, list[int]]: ...
+    def cost(self, i: int, lab: np.ndarray, K: int) -> np.ndarray: ...
+    def holders(self, unit: int) -> np.ndarray: ...
+    def in_conflict(self, unit: int, lab: np.ndarray) -> bool: ...
+    def moved(self, i: int, old: int, lab: np.ndarray) -> list[int]: ...
+
+
+def search(index: ConflictIndex, K: int, *, seed: int = 0, max_steps: int = 20_000,
            stall_steps: int = STALL_STEPS) -> tuple[np.ndarray | None, int]:
-    """Labels 0..K-1 of the ``index.n`` luminaires with no pair of the index in conflict
-    (or None), and the steps taken.
+    """Labels 0..K-1 of the ``index.n`` luminaires with no conflict in the index (or None),
+    and the steps taken.
 
-    Min-conflicts: take a conflicting pair, move the one of its luminaires whose best other
+    Min-conflicts: take a unit in conflict, move the one of its luminaires whose best other
     label removes most conflicts (ties and, with probability ``NOISE``, the luminaire at
     random), never back to a label left within ``TABU_STEPS`` steps. From seeded random
     labels; at most ``max_steps`` moves, and none once ``stall_steps`` moves have
-    not lowered the fewest conflicts seen.
+    not lowered the fewest conflicts seen. ``index.cost`` differences are exact, so the
+    count of conflicts is kept by them.
     """
     rng = np.random.default_rng([seed, K])
-    P = index.P
     lab = rng.integers(0, K, index.n).astype(np.int64)
-    if len(P) == 0:
+    total, pool = index.begin(lab)  # the pool: every unit in conflict, and some no longer (dropped when drawn)
+    if total == 0:
         return lab, 0
     if K < 2:
-        return (lab if len(conflicts(P, lab)) == 0 else None), 0
-    bad = set(conflicts(P, lab).tolist())
-    pool = list(bad)  # every conflicting pair, and some that no longer conflict (dropped when drawn)
+        return None, 0
     tabu: dict[tuple[int, int], int] = {}
-    fewest, since = len(bad), 0
+    fewest, since = total, 0
     for step in range(max_steps):
-        if not bad:
+        if total == 0:
             return lab, step
-        if len(bad) < fewest:
-            fewest, since = len(bad), step
+        if total < fewest:
+            fewest, since = total, step
         elif step - since > stall_steps:
             return None, step
-        while True:  # a conflicting pair, uniformly: draw from the pool, dropping stale entries
+        while True:  # a unit in conflict, uniformly: draw from the pool, dropping stale entries
             at = int(rng.integers(len(pool)))
-            m = pool[at]
-            if m in bad:
+            unit = pool[at]
+            if index.in_conflict(unit, lab):
                 break
             pool[at] = pool[-1]
             pool.pop()
-        cands = np.unique(P[m])
+        cands = index.holders(unit)
         if rng.random() < NOISE:
             cands = cands[[int(rng.integers(len(cands)))]]
         best: tuple[float, int, int] | None = None
@@ -207,17 +238,14 @@ def search(index: Index, K: int, *, seed: int = 0, max_steps: int = 20_000,
             if best is None or c[k] < best[0]:
                 best = (c[k], i, k)
         assert best is not None
-        _, i, k = best
-        if not np.isfinite(best[0]):
+        delta, i, k = best
+        if not np.isfinite(delta):
             continue
-        tabu[(i, int(lab[i]))] = step + TABU_STEPS
+        old = int(lab[i])
+        tabu[(i, old)] = step + TABU_STEPS
         lab[i] = k
-        rows = index.rows_of(i)
-        now = (lab[P[rows, :3]] == lab[P[rows, 3:]]).all(axis=1)
-        bad.difference_update(rows[~now].tolist())
-        new = [r for r in rows[now].tolist() if r not in bad]
-        bad.update(new)
-        pool.extend(new)
+        total += int(round(delta))
+        pool.extend(index.moved(i, old, lab))
         if len(tabu) > 4 * TABU_STEPS:
             tabu = {key: u for key, u in tabu.items() if u > step}
-    return (lab if not bad else None), max_steps
+    return (lab if total == 0 else None), max_steps

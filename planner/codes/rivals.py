@@ -58,6 +58,18 @@ def longest_side(triples: np.ndarray, xyz: np.ndarray) -> float:
     return float(sides(triples, xyz).max()) if len(triples) else 0.0
 
 
+def shape_matches(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """Every triple of the site (counter-clockwise) whose sides, in some rotation, each lie within
+    ``tolerance_m`` of a window's: the only triples that can read like one, whatever the IDs."""
+    xy = xyz[:, :2]
+    win = counter_clockwise(np.asarray(windows, dtype=np.int64).reshape(-1, 3), xy)
+    if len(win) == 0:
+        return win
+    site = counter_clockwise(site_triples(xy, longest_side(win, xyz) + tolerance_m + 1e-9), xy)
+    shapes = cKDTree(np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)]))
+    return site[shapes.query_ball_point(sides(site, xyz), tolerance_m + 1e-9, p=np.inf, return_length=True) > 0]
+
+
 def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """The triples in counter-clockwise plan order (as the receiver reads IDs)."""
     p = xy[triples]

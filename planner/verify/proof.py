@@ -53,10 +53,10 @@ MIN_CELL_M = 0.005
 NEAR = 24
 """LEDs nearest a pair's middle or a triangle's centroid that are tested against it (more only exclude more)."""
 
-PAIR_BUDGET = 40_000
+PAIR_BUDGET = 120_000
 """Most pairs within reach that the proof examines; a larger site is not proved (it is sampled)."""
 
-TRIANGLE_BUDGET = 80_000
+TRIANGLE_BUDGET = 400_000
 """Most candidate triangles (after the cheap tests) that the proof examines and the planner designs against."""
 
 _CHUNK = 20_000

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera, Poses
-from planner.codes.rivals import find_rivals, longest_side, site_triples
+from planner.codes.rivals import find_rivals, longest_side, shape_matches, site_triples
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.verify.proof import Proof
 from planner.verify.window_set import window_superset
@@ -96,7 +96,8 @@ def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_si
     else:
         tri = window_superset(xyz, radii, max_side_m, install_tolerance_m)
     rivals: dict[int, list] = {}
-    for row, triple in find_rivals(tri, xyz, np.asarray(ids), tolerance_m):
+    site = shape_matches(tri, xyz, tolerance_m)
+    for row, triple in find_rivals(tri, xyz, np.asarray(ids), tolerance_m, site=site):
         rivals.setdefault(row, []).append(triple)
     groups = sorted(([tuple(int(v) for v in tri[r])] + found for r, found in rivals.items()), key=lambda g: (-len(g), g))
     complete = proof is not None and proof.complete

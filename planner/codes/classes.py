@@ -1,0 +1,188 @@
+"""Labels against a proved window set on a lattice: congruence classes instead of pairs.
+
+On an exact lattice every translate of a triangle has the same shape, so the pairs that
+must differ (:mod:`planner.codes.pairwise`) number hundreds per window: 76 million on the
+16 x 16 grid. They are cliques, though: the triples of one shape (within the tolerance)
+must all carry different labels, read in corresponding order. So the triples that may
+read like a window are grouped by shape, exactly congruent ones into a class and classes
+within the tolerance of each other into one group (a safe over-approximation: a group
+asks more than the pairs do), each triple turned to its group's vertex order. Labels are
+valid for the groups when no two triples of a group, one of them a window, have equal
+labels in order; a dense table per group counts the labels in use, so a luminaire's cost
+is a lookup per triple that holds it. The verdict is still
+:func:`planner.codes.rivals.find_rivals` against the proved set: the groups guide the search.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from planner.codes.rivals import counter_clockwise, shape_matches, sides
+
+TABLE_BUDGET = 64_000_000
+"""Most (group, label triple) counters kept (two int16 tables, 4 bytes per counter)."""
+SHAPE_RESOLUTION_M = 1e-6
+"""Side lengths equal to this are one exact shape [m] (lattice coordinates carry float noise)."""
+
+
+@dataclass(frozen=True)
+class Groups:
+    """The triples that may read like a window, grouped by shape.
+
+    ``triples`` (M x 3) turned to their group's vertex order, ``group`` (M,) the group of
+    each, ``window`` (M,) whether it is a window (else only a triple it must not read like).
+    """
+
+    triples: np.ndarray
+    group: np.ndarray
+    window: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.group.max()) + 1 if len(self.group) else 0
+
+
+def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> Groups:
+    """Group the windows and every triple of the site within the tolerance of one of them."""
+    xy = xyz[:, :2]
+    win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0), xy)
+    everything = np.vstack([win, shape_matches(win, xyz, tolerance_m)])
+    key = np.sort(everything, axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)  # windows come first, so they keep their flag
+    triples = everything[np.sort(first)]
+    is_window = np.sort(first) < len(win)
+    # exact classes: the rotation whose rounded sides rank lowest
+    rounded = np.round(np.stack([sides(np.roll(triples, -r, axis=1), xyz) for r in range(3)], 1)
+                       / SHAPE_RESOLUTION_M).astype(np.int64)
+    vectors, rank = np.unique(rounded.reshape(-1, 3), axis=0, return_inverse=True)
+    rank = rank.reshape(-1, 3)
+    turn = np.argmin(rank, axis=1)
+    cls = rank[np.arange(len(rank)), turn]
+    used, cls = np.unique(cls, return_inverse=True)
+    shape = vectors[used] * SHAPE_RESOLUTION_M  # (C, 3) each class's sides in its order
+    offset = _merge(shape, tolerance_m)
+    group, turn_by = offset
+    total = (turn + turn_by[cls]) % 3
+    idx = (np.arange(3)[None, :] + total[:, None]) % 3
+    return Groups(np.take_along_axis(triples, idx, axis=1), group[cls], is_window)
+
+
+def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Join classes whose shapes lie within the tolerance in some rotation; returns each class's
+    group and the further turn that brings it into its group's order (first found wins)."""
+    c = len(shape)
+    tree = cKDTree(shape)
+    links: list[list[tuple[int, int]]] = [[] for _ in range(c)]
+    for r in range(3):
+        for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), tolerance_m + 1e-9, p=np.inf)):
+            for v in hits:
+                if v != u:  # roll(shape_u, -r) is near shape_v: u turned by r reads in v's order
+                    links[u].append((v, (3 - r) % 3))
+                    links[v].append((u, r))
+    group = np.full(c, -1, dtype=np.int64)
+    turn = np.zeros(c, dtype=np.int64)
+    g = 0
+    for root in range(c):
+        if group[root] >= 0:
+            continue
+        group[root] = g
+        todo = deque([root])
+        while todo:
+            u = todo.popleft()
+            for v, r in links[u]:
+                if group[v] < 0:
+                    group[v], turn[v] = g, (turn[u] + r) % 3
+                    todo.append(v)
+        g += 1
+    return group, turn
+
+
+class ClassIndex:
+    """Conflicts between the triples of each group under labels 0..K-1 (the protocol of
+    :func:`planner.codes.pairwise.search`; a unit is a triple of :class:`Groups`).
+
+    Two triples of a group conflict when their labels agree in order and one is a window.
+    """
+
+    def __init__(self, n: int, groups: Groups, K: int):
+        self.n, self.K, self.g = n, K, groups
+        self.T = groups.triples
+        self.win = groups.window.astype(np.int64)
+        self.base = groups.group * K ** 3
+        m = np.repeat(np.arange(len(self.T)), 3)
+        pos = np.tile(np.arange(3), len(self.T))
+        lum = self.T.reshape(-1)
+        order = np.argsort(lum, kind="stable")
+        self.m, self.pw = m[order], K ** (2 - pos[order])
+        self.start = np.searchsorted(lum[order], np.arange(n + 1))
+        size = groups.count * K ** 3
+        self.cw = np.zeros(size, dtype=np.int16)
+        self.cs = np.zeros(size, dtype=np.int16)
+
+    @staticmethod
+    def fits(groups: Groups, K: int) -> bool:
+        """Whether the tables for ``K`` labels are within :data:`TABLE_BUDGET` (and counts within int16)."""
+        biggest = np.bincount(groups.group).max() if len(groups.group) else 0
+        return groups.count * K ** 3 <= TABLE_BUDGET and biggest < 2 ** 15
+
+    def _keys(self, lab: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        t = lab[self.T[rows]]
+        return self.base[rows] + (t[:, 0] * self.K + t[:, 1]) * self.K + t[:, 2]
+
+    def begin(self, lab: np.ndarray) -> tuple[int, list[int]]:
+        keys = self._keys(lab)
+        self.cw[:] = 0
+        self.cs[:] = 0
+        np.add.at(self.cw, keys[self.win == 1], 1)
+        np.add.at(self.cs, keys[self.win == 0], 1)
+        w, s = self.cw.astype(np.int64), self.cs.astype(np.int64)
+        total = int((w * (w - 1) // 2 + w * s).sum())
+        bad = np.flatnonzero(self._partners(keys, self.win) > 0)
+        return total, bad.tolist()
+
+    def _partners(self, keys: np.ndarray, win: np.ndarray) -> np.ndarray:
+        """Triples each (with its own current key) conflicts with."""
+        w, s = self.cw[keys].astype(np.int64), self.cs[keys].astype(np.int64)
+        return np.where(win == 1, w - 1 + s, w)
+
+    def holders(self, unit: int) -> np.ndarray:
+        return np.unique(self.T[unit])
+
+    def in_conflict(self, unit: int, lab: np.ndarray) -> bool:
+        return bool(self._partners(self._keys(lab, np.array([unit])), self.win[[unit]])[0] > 0)
+
+    def cost(self, i: int, lab: np.ndarray, K: int) -> np.ndarray:
+        """Conflicts among the triples holding ``i``, for each label 0..K-1 of ``i`` (K,)."""
+        s, e = self.start[i], self.start[i + 1]
+        rows, pw = self.m[s:e], self.pw[s:e]
+        win = self.win[rows]
+        cur = self._keys(lab, rows)
+        new = (cur - lab[i] * pw)[:, None] + np.arange(K)[None, :] * pw[:, None]  # (h, K)
+        w, st = self.cw[new].astype(np.int64), self.cs[new].astype(np.int64)
+        for counts, mine in ((w, win == 1), (st, win == 0)):  # leave out the moving triples' own counts
+            held, n_held = np.unique(cur[mine], return_counts=True)
+            at = np.clip(np.searchsorted(held, new), 0, max(len(held) - 1, 0))
+            if len(held):
+                counts -= np.where(held[at] == new, n_held[at], 0)
+        out = np.where(win[:, None] == 1, w + st, w).sum(axis=0)
+        # pairs of moving triples that agree under the same new label
+        both = (new * K + np.arange(K)[None, :]).reshape(-1)
+        u, inv = np.unique(both, return_inverse=True)
+        nw = np.bincount(inv, weights=np.repeat(win, K), minlength=len(u))
+        ns = np.bincount(inv, weights=np.repeat(1 - win, K), minlength=len(u))
+        return out + np.bincount(u % K, weights=nw * (nw - 1) / 2 + nw * ns, minlength=K).astype(np.int64)
+
+    def moved(self, i: int, old: int, lab: np.ndarray) -> list[int]:
+        s, e = self.start[i], self.start[i + 1]
+        rows, pw = self.m[s:e], self.pw[s:e]
+        win = self.win[rows]
+        new = self._keys(lab, rows)
+        was = new + (old - lab[i]) * pw
+        for table, mine in ((self.cw, win == 1), (self.cs, win == 0)):
+            np.subtract.at(table, was[mine], 1)
+            np.add.at(table, new[mine], 1)
+        return rows[self._partners(new, win) > 0].tolist()
