@@ -9,7 +9,10 @@ within the tolerance of each other into one group (a safe over-approximation: a 
 asks more than the pairs do), each triple turned to its group's vertex order. Labels are
 valid for the groups when no two triples of a group, one of them a window, have equal
 labels in order; a dense table per group counts the labels in use, so a luminaire's cost
-is a lookup per triple that holds it. The verdict is still
+is a lookup per triple that holds it. A class that matches itself turned (a near-equilateral
+shape) or whose group order disagrees with a direct match (a chain of near shapes) is entered
+in all three turns, so every match within the tolerance is a conflict of equal keys; the price
+is that such a window may not carry one label thrice. The verdict is still
 :func:`planner.codes.rivals.find_rivals` against the proved set: the groups guide the search.
 """
 
@@ -64,25 +67,32 @@ def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> Gr
     cls = rank[np.arange(len(rank)), turn]
     used, cls = np.unique(cls, return_inverse=True)
     shape = vectors[used] * SHAPE_RESOLUTION_M  # (C, 3) each class's sides in its order
-    offset = _merge(shape, tolerance_m)
-    group, turn_by = offset
+    group, turn_by, spin = _merge(shape, tolerance_m)
     total = (turn + turn_by[cls]) % 3
+    turned = np.flatnonzero(spin[cls])  # entered again in the two other turns
+    rows = np.concatenate([np.arange(len(triples)), turned, turned])
+    total = np.concatenate([total, total[turned] + 1, total[turned] + 2]) % 3
     idx = (np.arange(3)[None, :] + total[:, None]) % 3
-    return Groups(np.take_along_axis(triples, idx, axis=1), group[cls], is_window)
+    return Groups(np.take_along_axis(triples[rows], idx, axis=1), group[cls][rows], is_window[rows])
 
 
-def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray]:
+def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Join classes whose shapes lie within the tolerance in some rotation; returns each class's
-    group and the further turn that brings it into its group's order (first found wins)."""
+    group, the further turn that brings it into its group's order (first found wins), and
+    whether it must be entered in every turn (a match the group order does not cover)."""
     c = len(shape)
     tree = cKDTree(shape)
     links: list[list[tuple[int, int]]] = [[] for _ in range(c)]
+    spin = np.zeros(c, dtype=bool)
+    reach = tolerance_m + 2 * SHAPE_RESOLUTION_M  # class shapes are rounded: reach a little further
     for r in range(3):
-        for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), tolerance_m + 1e-9, p=np.inf)):
+        for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), reach, p=np.inf)):
             for v in hits:
                 if v != u:  # roll(shape_u, -r) is near shape_v: u turned by r reads in v's order
                     links[u].append((v, (3 - r) % 3))
                     links[v].append((u, r))
+                elif r:
+                    spin[u] = True
     group = np.full(c, -1, dtype=np.int64)
     turn = np.zeros(c, dtype=np.int64)
     g = 0
@@ -98,7 +108,11 @@ def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarra
                     group[v], turn[v] = g, (turn[u] + r) % 3
                     todo.append(v)
         g += 1
-    return group, turn
+    for u in range(c):
+        for v, r in links[u]:
+            if turn[v] != (turn[u] + r) % 3:
+                spin[u] = spin[v] = True
+    return group, turn, spin
 
 
 class ClassIndex:

@@ -1,0 +1,108 @@
+"""Labels against a proved window set by shape groups: every rival is a group conflict, the cost
+deltas are exact, and search clears lattices whose pairs are too many to list."""
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from conftest import grid_xy, hex_xy
+from planner.codes.classes import ClassIndex, shape_groups
+from planner.codes.pairwise import alike_pairs, search
+from planner.codes.rivals import find_rivals, site_triples
+
+TOL = 0.05
+
+sites = st.one_of(
+    st.builds(lambda rows, cols, jitter, seed: grid_xy(rows, cols, 0.5, 0.5, jitter_m=jitter, seed=seed),
+              st.integers(2, 5), st.integers(3, 6), st.sampled_from([0.0, 0.02, 0.06]), st.integers(0, 100)),
+    st.builds(lambda rows, cols: hex_xy(rows, cols, 0.5), st.integers(2, 4), st.integers(3, 5)))
+
+
+def _xyz(xy):
+    return np.column_stack([xy, np.full(len(xy), 2.5)])
+
+
+def _keys(groups, labels):
+    t = labels[groups.triples]
+    return {(g, *row) for g, row in zip(groups.group.tolist(), t.tolist())}, t
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sites, st.integers(1, 3), st.integers(0, 1000))
+def test_every_rival_find_rivals_names_is_a_conflict_of_the_groups(xy, k, seed):
+    """Exact lattices (many congruent copies), near-equilateral hexagonal ones (a shape that
+    matches itself turned) and jittered sites: for random labels of few values, each (window,
+    rival) find_rivals reports has a row of each in one group with equal labels in order."""
+    xyz = _xyz(xy)
+    rng = np.random.default_rng(seed)
+    site = site_triples(xy, 1.2)
+    windows = site[rng.random(len(site)) < 0.4]
+    groups = shape_groups(windows, xyz, TOL)
+    ids = rng.integers(0, k, len(xy))
+    labels = ids[groups.triples]
+    for w, u in find_rivals(windows, xyz, ids, TOL):
+        rows_w = np.flatnonzero((np.sort(groups.triples, axis=1) == np.sort(windows[w])).all(axis=1))
+        rows_u = np.flatnonzero((np.sort(groups.triples, axis=1) == np.sort(u)).all(axis=1))
+        assert len(rows_w) and len(rows_u), (windows[w], u)
+        assert groups.window[rows_w].all()
+        assert any(groups.group[a] == groups.group[b] and (labels[a] == labels[b]).all()
+                   for a in rows_w for b in rows_u), (windows[w], u)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sites, st.integers(0, 1000))
+def test_cost_deltas_and_moves_match_a_count_from_scratch(xy, seed):
+    xyz = _xyz(xy)
+    rng = np.random.default_rng(seed)
+    windows = site_triples(xy, 1.2)
+    groups = shape_groups(windows, xyz, TOL)
+    K = 3
+    index = ClassIndex(len(xy), groups, K)
+    lab = rng.integers(0, K, len(xy))
+    total, _ = index.begin(lab)
+    for _ in range(5):
+        i = int(rng.integers(len(xy)))
+        cost = index.cost(i, lab, K)
+        for k in range(K):
+            trial = lab.copy()
+            trial[i] = k
+            assert ClassIndex(len(xy), groups, K).begin(trial)[0] == total - cost[lab[i]] + cost[k]
+        old, lab[i] = lab[i], int(rng.integers(K))
+        now = set(index.moved(i, old, lab))
+        total = total - cost[old] + cost[lab[i]]
+        fresh_total, fresh_bad = ClassIndex(len(xy), groups, K).begin(lab)
+        assert fresh_total == total
+        assert now <= set(fresh_bad)
+        assert all(index.in_conflict(u, lab) == (u in fresh_bad) for u in range(len(groups.triples)))
+
+
+def test_a_lattice_too_big_for_pairs_is_cleared_by_the_groups_and_find_rivals_agrees():
+    """An exact 8 x 10 lattice: the listed pairs run over a small budget, the groups do not,
+    and labels of 16 values (4 bits, against 7 for distinct IDs) leave no window reading like
+    any triple of the site."""
+    xy = grid_xy(8, 10, 0.6, 0.6)
+    xyz = _xyz(xy)
+    windows = site_triples(xy, 0.9)
+    assert alike_pairs(windows, xyz, TOL, budget=5_000) is None
+    groups = shape_groups(windows, xyz, TOL)
+    assert groups.count == 1 and len(groups.triples) == len(windows)  # one shape: a clique of 252
+    labels, steps = search(ClassIndex(len(xy), groups, 16), 16, seed=0, max_steps=20_000)
+    assert labels is not None and steps > 0
+    assert find_rivals(windows, xyz, labels, TOL) == []
+
+
+def test_a_hexagonal_lattice_is_cleared_despite_its_equilateral_windows():
+    xy = hex_xy(6, 7, 0.6)
+    xyz = _xyz(xy)
+    windows = site_triples(xy, 0.65)  # the unit equilateral triangles
+    groups = shape_groups(windows, xyz, TOL)
+    assert len(groups.triples) == 3 * len(np.unique(np.sort(groups.triples, axis=1), axis=0))  # every turn
+    labels, _ = search(ClassIndex(len(xy), groups, 8), 8, seed=0, max_steps=20_000)
+    assert labels is not None
+    assert find_rivals(windows, xyz, labels, TOL) == []
+
+
+def test_too_many_labels_for_the_table_budget_do_not_fit():
+    xy = grid_xy(3, 4, 0.5, 0.5)
+    groups = shape_groups(site_triples(xy, 0.75), _xyz(xy), TOL)
+    assert ClassIndex.fits(groups, 8)
+    assert not ClassIndex.fits(groups, 2 ** 12)
