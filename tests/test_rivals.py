@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy
-from planner.codes.rivals import find_rivals, site_triples
+from planner.codes.rivals import find_rivals, shape_matches, site_triples
 
 
 def ccw(t, xy):
@@ -55,6 +55,21 @@ def test_rivals_are_every_triple_that_reads_alike(xy, k, tol, seed):
             for u in itertools.combinations(range(len(xy)), 3)
             if set(u) != set(t) and reads_like(tuple(t), u, xy, ids, tol)}
     assert got == want
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sites, st.floats(0.0, 0.12), st.integers(0, 100))
+def test_shape_matches_are_the_triples_some_labels_could_make_rivals(xy, tol, seed):
+    """Each triple of the site that reads like a window under equal IDs, by brute force, and no other."""
+    rng = np.random.default_rng(seed)
+    xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
+    every = list(itertools.combinations(range(len(xy)), 3))
+    windows = np.array(every)[rng.random(len(every)) < 0.3][:25].reshape(-1, 3)
+    same = np.ones(len(xy), dtype=int)
+    got = {frozenset(t) for t in shape_matches(windows, xyz, tol).tolist()}
+    want = {frozenset(u) for u in every for t in windows.tolist() if reads_like(tuple(t), u, xy, same, tol)}
+    assert want <= got  # a window reads like itself: the windows are matches too
+    assert got <= want | {frozenset(t) for t in windows.tolist()}
 
 
 def test_a_mirrored_triangle_is_no_rival_but_a_rotated_copy_is():

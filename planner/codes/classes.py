@@ -136,6 +136,9 @@ class ClassIndex:
         size = groups.count * K ** 3
         self.cw = np.zeros(size, dtype=np.int16)
         self.cs = np.zeros(size, dtype=np.int16)
+        self._moving: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.by_group = np.argsort(groups.group, kind="stable")
+        self.group_start = np.searchsorted(groups.group[self.by_group], np.arange(groups.count + 1))
 
     @staticmethod
     def fits(groups: Groups, K: int) -> bool:
@@ -163,32 +166,49 @@ class ClassIndex:
         w, s = self.cw[keys].astype(np.int64), self.cs[keys].astype(np.int64)
         return np.where(win == 1, w - 1 + s, w)
 
-    def holders(self, unit: int) -> np.ndarray:
-        return np.unique(self.T[unit])
+    def holders(self, unit: int, lab: np.ndarray) -> np.ndarray:
+        """The unit's luminaires and those of the triples of its group it reads like."""
+        rows = self.by_group[self.group_start[self.g.group[unit]]:self.group_start[self.g.group[unit] + 1]]
+        keys = self._keys(lab, rows)
+        alike = rows[keys == self._keys(lab, np.array([unit]))[0]]
+        return np.unique(self.T[alike])
 
     def in_conflict(self, unit: int, lab: np.ndarray) -> bool:
         return bool(self._partners(self._keys(lab, np.array([unit])), self.win[[unit]])[0] > 0)
+
+    def _pairs(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs (local indices into ``i``'s rows) of triples holding ``i`` in one group, one of
+        them a window: they move together when ``i`` does (cached)."""
+        if i not in self._moving:
+            s, e = self.start[i], self.start[i + 1]
+            rows = self.m[s:e]
+            order = np.argsort(self.g.group[rows], kind="stable")
+            grp = self.g.group[rows][order]
+            end = np.searchsorted(grp, grp, side="right")  # each one's block end, in group order
+            later = end - np.arange(len(grp)) - 1  # partners after it in its block
+            a = np.repeat(np.arange(len(grp)), later)
+            b = a + 1 + np.arange(len(a)) - np.repeat(np.cumsum(later) - later, later)
+            a, b = order[a], order[b]
+            keep = (self.win[rows[a]] | self.win[rows[b]]) == 1
+            self._moving[i] = (a[keep], b[keep])
+        return self._moving[i]
 
     def cost(self, i: int, lab: np.ndarray, K: int) -> np.ndarray:
         """Conflicts among the triples holding ``i``, for each label 0..K-1 of ``i`` (K,)."""
         s, e = self.start[i], self.start[i + 1]
         rows, pw = self.m[s:e], self.pw[s:e]
-        win = self.win[rows]
+        win = self.win[rows] == 1
         cur = self._keys(lab, rows)
         new = (cur - lab[i] * pw)[:, None] + np.arange(K)[None, :] * pw[:, None]  # (h, K)
-        w, st = self.cw[new].astype(np.int64), self.cs[new].astype(np.int64)
-        for counts, mine in ((w, win == 1), (st, win == 0)):  # leave out the moving triples' own counts
-            held, n_held = np.unique(cur[mine], return_counts=True)
-            at = np.clip(np.searchsorted(held, new), 0, max(len(held) - 1, 0))
-            if len(held):
-                counts -= np.where(held[at] == new, n_held[at], 0)
-        out = np.where(win[:, None] == 1, w + st, w).sum(axis=0)
-        # pairs of moving triples that agree under the same new label
-        both = (new * K + np.arange(K)[None, :]).reshape(-1)
-        u, inv = np.unique(both, return_inverse=True)
-        nw = np.bincount(inv, weights=np.repeat(win, K), minlength=len(u))
-        ns = np.bincount(inv, weights=np.repeat(1 - win, K), minlength=len(u))
-        return out + np.bincount(u % K, weights=nw * (nw - 1) / 2 + nw * ns, minlength=K).astype(np.int64)
+        tables = ((self.cw, cur[win]), (self.cs, cur[~win]))
+        for table, mine in tables:  # the other triples only: take the moving ones out for the look-up
+            np.subtract.at(table, mine, 1)
+        w, st = self.cw[new], self.cs[new]
+        for table, mine in tables:
+            np.add.at(table, mine, 1)
+        out = w.sum(axis=0, dtype=np.int64) + st[win].sum(axis=0, dtype=np.int64)
+        a, b = self._pairs(i)  # and the moving triples that agree with each other under the new label
+        return out + (new[a] == new[b]).sum(axis=0)
 
     def moved(self, i: int, old: int, lab: np.ndarray) -> list[int]:
         s, e = self.start[i], self.start[i + 1]

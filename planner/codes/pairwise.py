@@ -163,7 +163,7 @@ class Index:
         bad = conflicts(self.P, lab)
         return len(bad), bad.tolist()
 
-    def holders(self, unit: int) -> np.ndarray:
+    def holders(self, unit: int, lab: np.ndarray) -> np.ndarray:
         return np.unique(self.P[unit])
 
     def in_conflict(self, unit: int, lab: np.ndarray) -> bool:
@@ -183,7 +183,8 @@ class ConflictIndex(Protocol):
 
     def begin(self, lab: np.ndarray) -> tuple[int, list[int]]: ...
     def cost(self, i: int, lab: np.ndarray, K: int) -> np.ndarray: ...
-    def holders(self, unit: int) -> np.ndarray: ...
+    def holders(self, unit: int, lab: np.ndarray) -> np.ndarray:
+        """The luminaires whose move can end the unit's conflicts."""
     def in_conflict(self, unit: int, lab: np.ndarray) -> bool: ...
     def moved(self, i: int, old: int, lab: np.ndarray) -> list[int]: ...
 
@@ -223,7 +224,7 @@ def search(index: ConflictIndex, K: int, *, seed: int = 0, max_steps: int = 20_0
                 break
             pool[at] = pool[-1]
             pool.pop()
-        cands = index.holders(unit)
+        cands = index.holders(unit, lab)
         if rng.random() < NOISE:
             cands = cands[[int(rng.integers(len(cands)))]]
         best: tuple[float, int, int] | None = None

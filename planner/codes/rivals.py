@@ -66,8 +66,12 @@ def shape_matches(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> n
     if len(win) == 0:
         return win
     site = counter_clockwise(site_triples(xy, longest_side(win, xyz) + tolerance_m + 1e-9), xy)
-    shapes = cKDTree(np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)]))
-    return site[shapes.query_ball_point(sides(site, xyz), tolerance_m + 1e-9, p=np.inf, return_length=True) > 0]
+    grain = 1e-7  # shapes this close are one (a lattice's windows have a few hundred shapes) [m]
+    shapes = np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)])
+    shapes = np.unique(np.round(shapes / grain), axis=0) * grain
+    reach = tolerance_m + grain + 1e-9
+    near, _ = cKDTree(shapes).query(sides(site, xyz), k=1, p=np.inf, distance_upper_bound=reach)
+    return site[np.isfinite(near)]
 
 
 def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
