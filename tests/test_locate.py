@@ -39,7 +39,7 @@ def snapshot_at(site, position, rotation, rng=None):
 
 @pytest.mark.slow
 def test_ids_repeat_and_every_covered_pose_is_identified_and_located(site, plan_path):
-    assert len(set(site.ids)) < len(site.ids) / 4  # a short code: each ID names many luminaires
+    assert len(set(site.ids)) <= len(site.ids) / 4  # a short code: each ID names four luminaires or more (6-bit proved plan of 256)
     poses = sample_poses(working_area(site.xyz[:, :2], load_plan(plan_path).outline), Camera(), per_m2=1, seed=4)
     rng = np.random.default_rng(0)
     located = 0
