@@ -236,7 +236,7 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         from planner.layout.dxf_annotate import write_annotated_dxf
 
         is_dxf = source.suffix.lower() == ".dxf"
-        write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, plan.entries(),
+        write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, written.luminaires,
                             source_path=source if is_dxf else None, tool_version=__version__)
         if with_map:
             from planner.report.maps import render_coverage, render_error, render_map

@@ -12,12 +12,13 @@ from planner.errors import InputError
 from planner.layout.dxf import read_dxf
 from planner.layout.dxf_annotate import APPID, ID_LAYER, LUM_LAYER, label, write_annotated_dxf
 from planner.layout.model import Layout, Luminaire
+from planner.plan_file import Entry
 
 
-def _entries(layout: Layout) -> list[dict]:
+def _entries(layout: Layout) -> list[Entry]:
     return [
-        {"name": lum.name, "x": lum.x, "y": lum.y, "z": lum.z, "id": 10 + k,
-         "parity": "odd" if k % 2 else "even", "region": k % 4}
+        Entry(name=lum.name, x=lum.x, y=lum.y, z=lum.z, radius=lum.radius, id=10 + k,
+              parity="odd" if k % 2 else "even", region=k % 4)
         for k, lum in enumerate(layout.luminaires)
     ]
 
@@ -43,8 +44,8 @@ def test_texts_at_luminaires_in_drawing_units(tmp_path, office):
     assert len(texts) == len(entries) == 12
     by_name = {t.get_xdata(APPID)[0].value: t for t in texts}
     for entry in entries:
-        text = by_name[entry["name"]]
-        assert_allclose(text.dxf.align_point, (entry["x"] * 1000, entry["y"] * 1000, entry["z"] * 1000), atol=1e-6)
+        text = by_name[entry.name]
+        assert_allclose(text.dxf.align_point, (entry.x * 1000, entry.y * 1000, entry.z * 1000), atol=1e-6)
         assert text.dxf.text == label(entry)
         assert 100 < text.dxf.height < 400  # mm: legible next to a 125 mm LED
     assert label(entries[1]) == "11 o R1"
@@ -60,8 +61,8 @@ def test_xdata_reads_back(tmp_path, office):
         tags = [(t.code, t.value) for t in text.get_xdata(APPID)]
         got[tags[0][1]] = tags
     for entry in entries:
-        assert got[entry["name"]] == [(1000, entry["name"]), (1071, entry["id"]), (1000, entry["parity"]),
-                                      (1071, entry["region"]), (1000, "vlp-plan 9.9")]
+        assert got[entry.name] == [(1000, entry.name), (1071, entry.id), (1000, entry.parity),
+                                      (1071, entry.region), (1000, "vlp-plan 9.9")]
 
 
 def test_source_is_kept_and_never_overwritten(tmp_path, office):

@@ -95,9 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--no-map", action="store_true", help="do not draw map.png, coverage.png and error.png")
     g.add_argument("--no-report", action="store_true",
                    help="do not write site-report.html and site-report.pdf (vlp-report writes them later)")
-    g.add_argument("--json", action="store_true", help="print a JSON summary on stdout instead of text")
-    g.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
-    p.add_argument("--version", action="version", version=f"vlp-plan {__version__}")
+    cli.common_flags(p, "print a JSON summary on stdout instead of text")
     return p
 
 

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import ezdxf
 from ezdxf.document import Drawing
@@ -24,7 +25,10 @@ from planner._files import write_bytes_atomically
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.dxf import load_drawing
-from planner.layout.model import DEFAULT_RADIUS_M, Layout
+from planner.layout.model import Layout
+
+if TYPE_CHECKING:
+    from planner.plan_file import Entry
 
 __all__ = ["write_annotated_dxf", "dxf_bytes", "fixed_metadata", "ID_LAYER", "LUM_LAYER", "APPID"]
 
@@ -74,7 +78,7 @@ def _same_file(a: Path, b: Path) -> bool:
 def write_annotated_dxf(
     dest: str | Path,
     layout: Layout,
-    entries: list[dict],
+    entries: Sequence[Entry],
     *,
     source_path: str | Path | None = None,
     tool_version: str = "",
@@ -87,16 +91,15 @@ def write_annotated_dxf(
         Output ``.dxf``; never the source drawing.
     layout : Layout
         The layout the plan was made from; ``layout.unit`` gives the drawing unit.
-    entries : list of dict
-        One per luminaire: ``name``, ``x``, ``y``, ``z`` [m], ``id`` (int), ``parity``
-        (``"odd"``/``"even"``), ``region`` (int); optional ``radius`` [m].
+    entries : sequence of planner.plan_file.Entry
+        One per luminaire, as the plan holds them (``name``, position and ``radius`` [m], ``id``,
+        ``parity``, ``region``).
     source_path : str or Path, optional
         The source DXF to annotate; ``None`` makes a new drawing in metres.
     tool_version : str
         Written into the ``VLP_PLAN`` XDATA of every text, if given.
     """
     dest = Path(dest)
-    radius_by_name = {lum.name: lum.radius for lum in layout.luminaires}
     if source_path is not None:
         source = Path(source_path)
         if _same_file(dest, source):
@@ -121,24 +124,23 @@ def write_annotated_dxf(
         doc.appids.add(APPID)
     msp = doc.modelspace()
     for entry in entries:
-        radius_m = float(entry.get("radius") or radius_by_name.get(entry["name"], DEFAULT_RADIUS_M))
-        where = (entry["x"] / scale, entry["y"] / scale, entry["z"] / scale)
+        radius_m = entry.radius
+        where = (entry.x / scale, entry.y / scale, entry.z / scale)
         if source_path is None:
             msp.add_circle(where, radius_m, dxfattribs={"layer": LUM_LAYER})
         height = max(TEXT_HEIGHT_PER_RADIUS * radius_m, MIN_TEXT_HEIGHT_M) / scale
         text = msp.add_text(label(entry), height=height, dxfattribs={"layer": ID_LAYER})
         text.set_placement(where, align=TextEntityAlignment.MIDDLE_CENTER)
-        tags = [(1000, str(entry["name"])), (1071, int(entry["id"])), (1000, str(entry["parity"]))]
-        tags.append((1071, int(entry["region"])))
+        tags = [(1000, entry.name), (1071, entry.id), (1000, entry.parity), (1071, entry.region)]
         if tool_version:
             tags.append((1000, f"vlp-plan {tool_version}"))
         text.set_xdata(APPID, tags)
     write_bytes_atomically(dest, dxf_bytes(doc))
 
 
-def label(entry: dict) -> str:
+def label(entry: Entry) -> str:
     """Short text for a luminaire: ID, ``o``/``e`` for odd/even, region (``15 o R3``)."""
-    return f"{entry['id']} {str(entry['parity'])[:1]} R{entry['region']}"
+    return f"{entry.id} {entry.parity[:1]} R{entry.region}"
 
 
 def _remove_layer_entities(doc: Drawing, layers: tuple[str, ...]) -> None:
