@@ -28,7 +28,7 @@ from planner.defaults import DRIVER_MAX_HZ
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
 from planner.layout.model import area_m2
-from planner.verify.windows import find_windows, sample_poses, working_area
+from planner.verify.windows import PoseSample
 
 FLICKER_HZ = 200.0
 """Lowest allowed repetition of the slowest on/off cycle [Hz] (IEEE 802.15.7's flicker guidance)."""
@@ -68,12 +68,15 @@ class Timing:
                               "driver_max": round(self.driver_max_hz, 3)}}
 
 
-def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, seed: int = 0) -> float:
-    """Rows of the smallest LED image in any window over sampled poses (the farthest working distance)."""
-    area = working_area(xyz[:, :2], outline)
-    floor = max(area_m2(area), 1e-6)
-    poses = sample_poses(area, camera, per_m2=min(400.0, TIMING_POSES / floor), seed=seed)
-    win = find_windows(poses, xyz, radii, camera)
+def timing_per_m2(area: np.ndarray) -> float:
+    """Pose density of the chip-timing sample over ``area`` [m]: :data:`TIMING_POSES` in all, at most 400 per m^2."""
+    return min(400.0, TIMING_POSES / max(area_m2(area), 1e-6))
+
+
+def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
+    """Rows of the smallest LED image in any window over the timing prefix of ``sample`` (the farthest
+    working distance)."""
+    poses, win = sample.first(timing_per_m2(sample.area))
     ok = win.covered
     if not ok.any():
         raise PlanningError("no sampled camera pose sees three whole LEDs: no LED image to fit a frame into; "

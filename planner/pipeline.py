@@ -24,13 +24,13 @@ from planner.errors import InputError, UsageError
 from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
-from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
+from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows, timing_per_m2
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
-from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
+from planner.positioning.accuracy import ERROR_POSES_PER_M2, error_per_m2, site_accuracy
 from planner.verify.proof import prove_window_set
-from planner.verify.verify import Verification, check_window_set, classify, observe, side_bound
-from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
+from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound
+from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
 
 LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
 
@@ -121,15 +121,19 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     graph = build_graph(xy)
     cam = options.camera
 
+    area = working_area(xy, layout.outline)
+    with_error_map = options.verify and options.error_poses_per_m2 > 0
+    densities = [timing_per_m2(area)] + [options.poses_per_m2] * options.verify \
+        + [error_per_m2(area, options.error_poses_per_m2)] * with_error_map
+    sample = PoseSample.draw(area, xyz, radii, cam, max(densities), options.seed)  # every stage takes a prefix
     observations: dict = {}  # seed -> what the camera sees; shared by every scheme checked
+    if options.verify:
+        poses, windows = sample.first(options.poses_per_m2)
+        observations[options.seed] = observe_poses(poses, xyz, radii, cam, per_m2=options.poses_per_m2,
+                                                    seed=options.seed, tolerance_m=options.tolerance_m, windows=windows)
 
     def verify_ids(ids: np.ndarray) -> Verification | None:
-        if not options.verify:
-            return None
-        if options.seed not in observations:
-            observations[options.seed] = observe(xyz, radii, layout.outline, cam, per_m2=options.poses_per_m2,
-                                                 seed=options.seed, tolerance_m=options.tolerance_m)
-        return classify(observations[options.seed], ids)
+        return classify(observations[options.seed], ids) if options.verify else None
 
     proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
     made = {}
@@ -172,12 +176,12 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     code = line_code(options.line_code)
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
-    rows = smallest_window_image_rows(xyz, radii, layout.outline, cam, seed=options.seed)
+    rows = smallest_window_image_rows(xyz, radii, cam, sample)
     modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz)
     accuracy = None
-    if options.verify and options.error_poses_per_m2 > 0:
+    if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
-                                 per_m2=options.error_poses_per_m2, seed=options.seed)
+                                 per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation)
 
 

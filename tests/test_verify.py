@@ -19,7 +19,7 @@ from planner.codes.window import window_keys
 from planner.graph import build_graph
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import AMBIGUOUS, DECODABLE, verify_plan
-from planner.verify.windows import canonical_windows, find_windows, sample_poses, working_area
+from planner.verify.windows import PoseSample, canonical_windows, find_windows, sample_poses, working_area
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -173,6 +173,25 @@ def test_vlp_verify_bad_plan_file(tmp_path):
     bad.write_text("format: something-else\n")
     result = plan_cli(["planner.cli.verify", str(bad)])
     assert result.returncode == 1 and "not a vlp-plan/1 plan" in result.stderr
+
+
+def test_a_plans_one_pose_sample_gives_every_lower_density_exactly():
+    """make_plan draws once and hands prefixes to verification, timing and the error map: each prefix
+    must be what sample_poses and find_windows give at that density on their own."""
+    xyz = np.column_stack([grid_xy(5, 7, 0.5, 0.5, jitter_m=0.02, seed=3), np.full(35, 2.5)])
+    radii = np.full(35, 0.1)
+    cam = Camera()
+    area = working_area(xyz[:, :2], None)
+    sample = PoseSample.draw(area, xyz, radii, cam, per_m2=400.0, seed=5)
+    for per_m2 in (4.0, 37.0, 400.0):
+        poses, windows = sample.first(per_m2)
+        alone = sample_poses(area, cam, per_m2, seed=5)
+        assert len(poses) == len(alone) > 0
+        np.testing.assert_array_equal(poses.position, alone.position)
+        np.testing.assert_array_equal(poses.roll_rad, alone.roll_rad)
+        np.testing.assert_array_equal(windows.triples, find_windows(alone, xyz, radii, cam).triples)
+    with pytest.raises(ValueError, match="the sample holds"):
+        sample.first(401.0)
 
 
 def test_working_area_is_the_hull_without_an_outline():

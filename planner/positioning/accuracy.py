@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +19,9 @@ from planner.errors import PositioningError
 from planner.plot_style import save_png, styled
 from planner.positioning.locate import METHODS
 from planner.positioning.observation import NOISE_PX, observe
+
+if TYPE_CHECKING:
+    from planner.verify.windows import PoseSample
 
 # The paper's rig (Table 2), metres; its LED radius and tilts are in planner.defaults.
 PAPER_LEDS_M = np.array([[0.0, 0.3, 2.5], [0.0, -0.3, 2.5], [0.5, 0.0, 2.5], [-0.5, 0.0, 2.5]])
@@ -177,18 +181,25 @@ class SiteAccuracy:
         return edges[0], edges[1], med, p90
 
 
-def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, method: str = "perspective",
-                  per_m2: float = ERROR_POSES_PER_M2, seed: int = 0, noise_px: float = NOISE_PX) -> SiteAccuracy:
-    """Error map of ``method`` over a site: poses sampled as the verification samples them,
-    ``per_m2`` of floor but at most :data:`ERROR_MAX_POSES`."""
+def error_per_m2(area: np.ndarray, per_m2: float = ERROR_POSES_PER_M2) -> float:
+    """Pose density of the error map over ``area`` [m]: ``per_m2``, but at most :data:`ERROR_MAX_POSES` in all."""
     from planner.layout.model import area_m2
+
+    return min(per_m2, ERROR_MAX_POSES / max(area_m2(area), 1e-6))
+
+
+def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, method: str = "perspective",
+                  per_m2: float = ERROR_POSES_PER_M2, seed: int = 0, noise_px: float = NOISE_PX,
+                  sample: PoseSample | None = None) -> SiteAccuracy:
+    """Error map of ``method`` over a site: poses sampled as the verification samples them,
+    ``per_m2`` of floor but at most :data:`ERROR_MAX_POSES` (the first of ``sample``, a plan's one
+    draw with seed ``seed``, if given)."""
     from planner.verify.windows import sample_poses, working_area
 
-    area = working_area(xyz[:, :2], outline)
-    floor = max(area_m2(area), 1e-6)
-    per_m2 = min(per_m2, ERROR_MAX_POSES / floor)
+    area = working_area(xyz[:, :2], outline) if sample is None else sample.area
+    per_m2 = error_per_m2(area, per_m2)
     cell = max(ERROR_CELL_M, math.ceil(2 * math.sqrt(8 / per_m2)) / 2)
-    poses = sample_poses(area, camera, per_m2=per_m2, seed=seed)
+    poses = sample_poses(area, camera, per_m2=per_m2, seed=seed) if sample is None else sample.first(per_m2)[0]
     errors = site_errors(xyz, radii, poses, camera, method, noise_px, seed)
     return SiteAccuracy(method, noise_px, poses.position, errors, cell)
 

@@ -198,9 +198,9 @@ class Observation:
 
 
 def observe_poses(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera, *, per_m2: float, seed: int,
-                  tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Observation:
-    """Find each pose's window, and the site's triples that could read like one."""
-    pw = find_windows(poses, xyz, radii, camera)
+                  tolerance_m: float = CONGRUENCE_TOLERANCE_M, windows: PoseWindows | None = None) -> Observation:
+    """Find each pose's window (unless ``windows`` has them), and the site's triples that could read like one."""
+    pw = find_windows(poses, xyz, radii, camera) if windows is None else windows
     ws = canonical_windows(pw.triples[pw.covered], xyz, tolerance_m)
     site = site_triples(xyz[:, :2], side_bound(ws, xyz, tolerance_m) + 1e-9) if len(ws) else np.empty((0, 3), np.int64)
     return Observation(poses.position, pw, ws, per_m2, seed, tolerance_m, xyz, site)

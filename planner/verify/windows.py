@@ -46,16 +46,23 @@ def working_area(xy: np.ndarray, outline) -> np.ndarray:
 
 
 
+def pose_count(area: np.ndarray, per_m2: float) -> int:
+    """Poses :func:`sample_poses` draws over ``area`` (polygon [m]) at ``per_m2`` per square metre."""
+    return max(1, int(round(per_m2 * max(area_m2(area), 1e-6))))
+
+
 def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2, seed: int = 0) -> Poses:
     """Quasi-random poses over ``area`` (polygon [m]): position, height, tilt, azimuth, roll.
 
     A scrambled Sobol sequence over (x, y, height, tilt, azimuth, roll); tilt is
     uniform in [0, max_tilt] (more weight on strong tilts than a uniform cap, so
-    the hard cases are well sampled); points outside the area are dropped.
+    the hard cases are well sampled); points outside the area are dropped. The
+    sample at a lower density is the first :func:`pose_count` poses of this one
+    (same seed): the points are kept in sequence order.
     """
     polygon = PolygonPath(area)
     lo, hi = area.min(axis=0), area.max(axis=0)
-    wanted = max(1, int(round(per_m2 * max(area_m2(area), 1e-6))))
+    wanted = pose_count(area, per_m2)
     sobol = qmc.Sobol(d=6, scramble=True, seed=seed)
     chunks, have = [], 0
     while have < wanted:  # draw in power-of-two chunks (Sobol balance), keep those inside the area
@@ -93,6 +100,37 @@ class PoseWindows:
     def covered(self) -> np.ndarray:
         """Poses with three non-collinear LEDs seen."""
         return (self.triples[:, 0] >= 0) & ~self.collinear
+
+    def first(self, n: int) -> PoseWindows:
+        return PoseWindows(self.triples[:n], self.seen[:n], self.collinear[:n])
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """One seeded pose sample over a working area and each pose's window, drawn once per plan.
+
+    Stages that sample at different densities (verification, chip timing, the error map)
+    take :meth:`first`: a prefix is exactly what :func:`sample_poses` draws at the lower
+    density with the same seed, so sharing one draw changes no result.
+    """
+
+    area: np.ndarray
+    poses: Poses
+    windows: PoseWindows
+    seed: int
+
+    @classmethod
+    def draw(cls, area: np.ndarray, xyz: np.ndarray, radii: np.ndarray, camera: Camera, per_m2: float,
+             seed: int = 0) -> PoseSample:
+        poses = sample_poses(area, camera, per_m2, seed)
+        return cls(area, poses, find_windows(poses, xyz, radii, camera), seed)
+
+    def first(self, per_m2: float) -> tuple[Poses, PoseWindows]:
+        """The poses and windows :func:`sample_poses` and :func:`find_windows` give at ``per_m2``."""
+        n = pose_count(self.area, per_m2)
+        if n > len(self.poses):
+            raise ValueError(f"{per_m2:g} poses per m^2 need {n} poses; the sample holds {len(self.poses)}")
+        return self.poses.subset(slice(0, n)), self.windows.first(n)
 
 
 def twice_signed_area(p: np.ndarray) -> np.ndarray:
