@@ -12,7 +12,7 @@ from planner.codes.window import (
     assign_window_code,
     conflicting_windows,
     count_conflicts,
-    cpsat_labels,
+    cpsat_window_labels,
     lower_bound_labels,
     repair_labels,
     search_labels,
@@ -208,14 +208,14 @@ def test_cpsat_proves_and_finds():
     # three windows share luminaires 0 and 1 in the same places: 2, 3, 4 need distinct labels
     w, shape, sym = np.array([(0, 1, 2), (0, 1, 3), (0, 1, 4)]), np.zeros(3, int), np.array([False])
     assert lower_bound_labels(shape, sym) == 2
-    assert cpsat_labels(5, w, shape, sym, 2, seed=0, time_budget=2)[:2] == (None, True)
-    labels, proved, _ = cpsat_labels(5, w, shape, sym, 3, seed=0, time_budget=2)
+    assert cpsat_window_labels(5, w, shape, sym, 2, seed=0, time_budget=2)[:2] == (None, True)
+    labels, proved, _ = cpsat_window_labels(5, w, shape, sym, 3, seed=0, time_budget=2)
     assert not proved and ref_conflicts(w, shape, sym, labels) == []
     assert search_labels(5, w, shape, sym, 2, seed=0, max_steps=200) is None
     code = assign_window_code(5, w, shape, sym, seed=0, time_budget=2)
     assert (code.bits, code.lower_bound_bits, code.optimal) == (2, 1, True)  # 1 bit proved infeasible
     hexes = [(0, 1, 2), (3, 4, 5)]  # symmetric shapes in the model: rotations collide
-    labels, _, _ = cpsat_labels(6, hexes, [0, 0], [True], 2, seed=0, time_budget=2)
+    labels, _, _ = cpsat_window_labels(6, hexes, [0, 0], [True], 2, seed=0, time_budget=2)
     assert ref_conflicts(hexes, [0, 0], [True], labels) == []
 
 
@@ -224,7 +224,7 @@ def test_cpsat_proves_and_finds():
 def test_cpsat_agrees_with_brute_force(inst, K):
     n, w, shape, sym = inst
     feasible = any(not ref_conflicts(w, shape, sym, lab) for lab in itertools.product(range(K), repeat=n))
-    labels, proved, _ = cpsat_labels(n, w, shape, sym, K, seed=0, time_budget=5)
+    labels, proved, _ = cpsat_window_labels(n, w, shape, sym, K, seed=0, time_budget=5)
     assert (labels is not None, proved) == (feasible, not feasible)
     if feasible:
         assert ref_conflicts(w, shape, sym, labels) == []

@@ -17,15 +17,12 @@ from collections import deque
 import numpy as np
 from ortools.sat.python import cp_model
 
+from planner.codes import cpsat
 from planner.graph import NeighbourGraph
 
 CPSAT_MAX_CROSS_EDGES = 300
 """CP-SAT is tried only up to this many cross edges: beyond it, its AllDifferent model
 rarely finds a shorter code within budget (459 luminaires: nothing in 137 s)."""
-
-WALL_FACTOR = 3.0
-"""Wall-clock safety stop of a CP-SAT call, in multiples of its deterministic budget."""
-
 
 def _bfs_order(graph: NeighbourGraph) -> list[int]:
     n = len(graph.odd)
@@ -71,14 +68,12 @@ def greedy_labels(graph: NeighbourGraph) -> np.ndarray:
     return label
 
 
-def cpsat_labels(graph: NeighbourGraph, per_class: int, time_budget: float,
+def cpsat_pair_labels(graph: NeighbourGraph, per_class: int, time_budget: float,
                  seed: int) -> tuple[np.ndarray | None, bool]:
     """Labels with at most ``per_class`` labels in each class (or None), and whether the
     wall-clock safety stop ended the search.
 
-    ``time_budget`` is CP-SAT's deterministic time (about seconds on a typical
-    machine, but reproducible): the same input and seed give the same answer,
-    unless the wall-clock stop (``WALL_FACTOR`` times the budget) ended it first.
+    ``time_budget`` is CP-SAT's deterministic time (:mod:`planner.codes.cpsat`).
     """
     odd = graph.odd
     n = len(odd)
@@ -91,17 +86,10 @@ def cpsat_labels(graph: NeighbourGraph, per_class: int, time_budget: float,
         model.add(x[int(u)] != x[int(w)])
     if n:
         model.add(x[0] == 0)  # labels are interchangeable: fix one
-    solver = cp_model.CpSolver()
-    solver.parameters.max_deterministic_time = time_budget
-    solver.parameters.max_time_in_seconds = WALL_FACTOR * time_budget  # safety net, see cpsat_wall_stopped
-    solver.parameters.num_workers = 2
-    solver.parameters.interleave_search = True
-    solver.parameters.random_seed = seed
-    status = solver.solve(model)
-    wall_stopped = solver.wall_time >= 0.99 * WALL_FACTOR * time_budget
-    if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        return None, wall_stopped
-    return np.array([solver.value(v) for v in x], dtype=np.int64), wall_stopped
+    got = cpsat.solve(model, time_budget=time_budget, seed=seed)
+    if not got.found:
+        return None, got.wall_stopped
+    return np.array([got.solver.value(v) for v in x], dtype=np.int64), got.wall_stopped
 
 
 def labels_to_ids(odd: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -116,7 +104,7 @@ def search(graph: NeighbourGraph, min_bits: int, time_budget: float, seed: int) 
     bits = max(1, math.ceil(math.log2(int(ids.max()))))
     small = len(graph.cross_edges) <= CPSAT_MAX_CROSS_EDGES
     while small and bits - 1 >= max(min_bits, 1) and time_budget > 0:
-        labels, wall_stopped = cpsat_labels(graph, 2 ** (bits - 2), time_budget, seed)
+        labels, wall_stopped = cpsat_pair_labels(graph, 2 ** (bits - 2), time_budget, seed)
         if wall_stopped:
             method += " (CP-SAT stopped by the wall clock: the result may differ on another machine)"
         if labels is None:

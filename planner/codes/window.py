@@ -20,6 +20,8 @@ from itertools import repeat
 import numpy as np
 from ortools.sat.python import cp_model
 
+from planner.codes import cpsat
+
 DENSE_MAX = 1 << 23
 """Key counts live in a dense array when ``shapes * K**3`` is at most this, else a dict."""
 LS_STEPS_PER_SECOND = 5000
@@ -394,13 +396,12 @@ def repair_labels(labels, n: int, windows, shape, symmetric, K: int, *, seed: in
     return lab if _local_search(prob, lab, seed, max_steps) == 0 else None
 
 
-def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, time_budget: float = 10.0,
+def cpsat_window_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, time_budget: float = 10.0,
                  hint: np.ndarray | None = None) -> tuple[np.ndarray | None, bool, bool]:
     """CP-SAT: (valid labels or None, True if K labels are proved infeasible, True if the
     wall-clock safety net stopped the search, so the result may differ on another machine).
 
-    ``time_budget`` is deterministic time (about seconds, reproducible); wall time is
-    capped at three times that as a safety net. ``hint`` seeds the search.
+    ``time_budget`` is deterministic time (:mod:`planner.codes.cpsat`). ``hint`` seeds the search.
     """
     w, s, sym = _arrays(windows, shape, symmetric)
     model = cp_model.CpModel()
@@ -425,23 +426,16 @@ def cpsat_labels(n: int, windows, shape, symmetric, K: int, *, seed: int = 0, ti
             swap = np.where(h == h[first], 0, np.where(h == 0, h[first], h))  # relabel so hint[first] == 0
             for v, var in x.items():
                 model.add_hint(var, int(swap[v]))
-    solver = cp_model.CpSolver()
-    solver.parameters.max_deterministic_time = time_budget
-    solver.parameters.max_time_in_seconds = 3.0 * time_budget
-    solver.parameters.num_workers = 2
-    solver.parameters.interleave_search = True
-    solver.parameters.random_seed = seed
-    solver.parameters.stop_after_first_solution = True  # else a long interleaved task runs on to the wall limit
-    status = solver.solve(model)
-    wall_stopped = solver.wall_time >= 0.99 * 3.0 * time_budget
-    if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        return None, status == cp_model.INFEASIBLE, wall_stopped
+    got = cpsat.solve(model, time_budget=time_budget, seed=seed, first_solution=True)  # else a long
+    # interleaved task runs on to the wall limit
+    if not got.found:
+        return None, got.infeasible, got.wall_stopped
     lab = np.zeros(n, np.int64)
     for v, var in x.items():
-        lab[v] = solver.value(var)
+        lab[v] = got.solver.value(var)
     if count_conflicts(w, s, symmetric, lab, K):
-        return None, False, wall_stopped  # never expected: independent check of the model
-    return lab, False, wall_stopped
+        return None, False, got.wall_stopped  # never expected: independent check of the model
+    return lab, False, got.wall_stopped
 
 
 def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time_budget: float = 10.0,
@@ -484,7 +478,7 @@ def assign_window_code(n: int, windows, shape, symmetric, *, seed: int = 0, time
             hint, lab = lab, None
             if len(w) <= cpsat_max_windows and time_budget > 0 and act.all():
                 method = "CP-SAT"
-                lab, proved, wall = cpsat_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=hint)
+                lab, proved, wall = cpsat_window_labels(n, w, s, symmetric, K, seed=seed, time_budget=time_budget, hint=hint)
                 wall_stopped |= wall
             if lab is None and K >= n:
                 lab, method = np.arange(n, dtype=np.int64), "distinct labels"
