@@ -27,7 +27,7 @@ from planner.camera import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire  # noqa: E402
 from planner.pipeline import ReadOptions, read_layout  # noqa: E402
 from planner.verify.proof import TRIANGLE_BUDGET, envelope, possible_windows  # noqa: E402
-from planner.verify.verify import observe  # noqa: E402
+from planner.verify.verify import observe_site  # noqa: E402
 from window_set_bench import jittered_site  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,7 +59,7 @@ def main() -> None:
         seconds = time.perf_counter() - t0
         fresh: set = set()
         for s in range(11, 11 + args.fresh_seeds):
-            obs = observe(xyz, radii, layout.outline, cam, per_m2=4000, seed=s)
+            obs = observe_site(xyz, radii, layout.outline, cam, per_m2=4000, seed=s)
             fresh |= {tuple(sorted(t)) for t in obs.windows.windows.tolist()}
         inside = {tuple(t) for t in proved.tolist()}
         print(f"| {name} | {len(xyz)} | {len(fresh):,} | {len(proved):,} | {len(fresh - inside)} | {seconds:.1f} |",

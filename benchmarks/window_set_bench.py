@@ -30,7 +30,7 @@ from planner.camera import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire  # noqa: E402
 from planner.pipeline import PlanOptions, ReadOptions, make_plan, read_layout  # noqa: E402
 from planner.verify.proof import prove_window_set  # noqa: E402
-from planner.verify.verify import classify, observe  # noqa: E402
+from planner.verify.verify import classify, observe_site  # noqa: E402
 from planner.verify.window_set import window_superset  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,7 +65,7 @@ def main() -> None:
         tri = {frozenset(t) for t in protected.tolist()}
 
         def count(per_m2, seed, xyz=xyz, radii=radii, outline=layout.outline):  # this site's, bound now
-            return observe(xyz, radii, outline, cam, per_m2=per_m2, seed=seed)
+            return observe_site(xyz, radii, outline, cam, per_m2=per_m2, seed=seed)
 
         default, design = count(400, 0), count(2000, 1)
         fresh, amb, poses = set(), 0, 0

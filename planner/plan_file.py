@@ -129,7 +129,7 @@ class CameraFields(BaseModel):
         return Camera.from_dict(self.model_dump(exclude_none=True))
 
 
-class Modulation(_Section):
+class ModulationFields(_Section):
     """The frames' timing (times in seconds, image sizes in sensor rows)."""
 
     line_code: Literal[LINE_CODE_NAMES]  # type: ignore[valid-type]
@@ -172,7 +172,7 @@ class PlanFile(_Section):
     schemes_considered: dict[str, Any] | None = None
     camera: CameraFields = CameraFields()
     verification: Verification | None = None
-    modulation: Modulation | None = None
+    modulation: ModulationFields | None = None
     accuracy: Accuracy | None = None
     outline: list[tuple[Coordinate, Coordinate]] | None = None
     luminaires: Annotated[list[Entry], Field(min_length=1, max_length=1_000_000)]

@@ -18,7 +18,7 @@ from planner.camera import rotation_from_angles
 from planner.cli.twin import console_main
 from planner.frame import frame_chips, line_code
 from planner.plan_file import load_plan
-from planner.twin.receiver import Modulation, chips_from_levels, decode_frame
+from planner.twin.receiver import FrameFormat, chips_from_levels, decode_frame
 from planner.twin.render import Sensor, exposure_means, render_frame
 from planner.twin.twin import Twin, covered_poses, summary
 
@@ -66,7 +66,7 @@ def _single_led_frame(word, code_name, exposure_s=25e-6, seed=0, height_m=1.0):
     frame = render_frame(np.array([[0.0, 0.0, 2.5]]), np.array([0.1]), [chips], rate, camera,
                          np.array([0.0, 0.0, 2.5 - height_m]), rotation_from_angles(0, 0, 0)[0],
                          Sensor(exposure_s=exposure_s), np.random.default_rng(seed))
-    return frame, Modulation(code, 4, rate), camera
+    return frame, FrameFormat(code, 4, rate), camera
 
 
 @pytest.mark.parametrize("code_name", ["manchester", "4b6b"])
@@ -86,7 +86,7 @@ def test_a_dark_frame_has_no_blobs_and_a_cut_led_is_refused(plan512):
 
     camera = Camera()
     dark = np.full((camera.height_px, camera.width_px), 6, np.uint8)
-    mod = Modulation.from_plan(load_plan(plan512))
+    mod = FrameFormat.from_plan(load_plan(plan512))
     assert decode_frame(dark, camera, mod) == []
     frame, mod4, _ = _single_led_frame(3, "manchester")
     shifted = np.zeros_like(frame.image) + 6

@@ -11,7 +11,7 @@ from planner.camera import Camera
 from planner.layout.model import Layout, Luminaire, area_m2
 from planner.pipeline import PlanOptions, make_plan, read_layout
 from planner.verify.proof import envelope
-from planner.verify.verify import AMBIGUOUS, classify, observe
+from planner.verify.verify import AMBIGUOUS, classify, observe_site
 from planner.verify.window_set import empty_triangles, window_superset
 from planner.verify.windows import POSES_PER_M2, find_windows, sample_poses, working_area
 
@@ -90,7 +90,7 @@ def test_default_plans_show_no_ambiguous_pose_on_fresh_dense_samples(xy, seed):
     assert plan.verification.window_set.proved, plan.verification.window_set.reason
     xyz, radii = layout.xyz, np.full(len(xy), 0.1)
     for fresh in range(5):
-        obs = observe(xyz, radii, None, plan.camera, per_m2=10 * POSES_PER_M2, seed=10_000 + 17 * seed + fresh)
+        obs = observe_site(xyz, radii, None, plan.camera, per_m2=10 * POSES_PER_M2, seed=10_000 + 17 * seed + fresh)
         v = classify(obs, plan.assignment.ids)
         assert v.count(AMBIGUOUS) == 0, (plan.assignment.scheme, v.conflicts[:2])
 
@@ -108,7 +108,7 @@ def test_the_jittered_site_of_issue_13_is_proved_and_unambiguous_on_fresh_dense_
     assert plan.assignment.scheme == "window" and plan.assignment.bits <= 6
     xyz, radii = layout.xyz, np.full(len(xy), 0.1)
     for fresh in range(5):
-        obs = observe(xyz, radii, None, plan.camera, per_m2=10 * POSES_PER_M2, seed=20_000 + fresh)
+        obs = observe_site(xyz, radii, None, plan.camera, per_m2=10 * POSES_PER_M2, seed=20_000 + fresh)
         v = classify(obs, plan.assignment.ids)
         assert v.count(AMBIGUOUS) == 0, v.conflicts[:2]
         assert v.poses > 500_000
@@ -130,7 +130,7 @@ def test_default_plans_of_the_bundled_layouts_show_no_ambiguous_pose_on_fresh_de
     radii = np.array([lum.radius for lum in layout.luminaires])
     poses = 0
     for fresh in range(5):
-        obs = observe(xyz, radii, layout.outline, plan.camera, per_m2=10 * POSES_PER_M2, seed=30_000 + fresh)
+        obs = observe_site(xyz, radii, layout.outline, plan.camera, per_m2=10 * POSES_PER_M2, seed=30_000 + fresh)
         v = classify(obs, plan.assignment.ids)
         assert v.count(AMBIGUOUS) == 0, (plan.assignment.scheme, v.conflicts[:2])
         poses += v.poses

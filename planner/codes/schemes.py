@@ -29,7 +29,7 @@ from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
 from planner.layout.model import area_m2
 from planner.verify.proof import Proof
-from planner.verify.verify import Verification, classify, design_windows, observe
+from planner.verify.verify import Verification, classify, design_windows, observe_site
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
 
@@ -178,7 +178,7 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
     ids = labels.astype(np.int64) + 1
     bits = bits_for(max(k, 2))
     if seed not in observations:
-        observations[seed] = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+        observations[seed] = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
     check = classify(observations[seed], ids)
     detail = {"windows": len(proof.triangles), **size, "widths_tried": tried,
               "steps": int(steps_of), "max_steps": max_steps, "labels": int(k), "optimal": False,
@@ -213,7 +213,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
 
     def checked(s: int, labels: np.ndarray) -> Verification:
         if s not in seen:
-            seen[s] = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=s, tolerance_m=tolerance_m)
+            seen[s] = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=s, tolerance_m=tolerance_m)
         return classify(seen[s], labels + 1)
 
     n = len(xyz)

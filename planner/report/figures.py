@@ -20,7 +20,7 @@ from planner.report.content import BillLine, Stop
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
 
-    from planner.plan_file import Entry, Modulation, PlanFile
+    from planner.plan_file import Entry, ModulationFields, PlanFile
 
 TIMING_LUMINAIRES = 4
 """How many luminaires (with distinct IDs) the timing diagram shows."""
@@ -52,7 +52,7 @@ def timing_examples(plan: PlanFile, route: np.ndarray) -> list[Entry]:
 
 
 @styled
-def timing_diagram(mod: Modulation, examples: list[Entry]) -> bytes:
+def timing_diagram(mod: ModulationFields, examples: list[Entry]) -> bytes:
     """PNG: each example's LED drive (on/off) over a few frames, preamble shaded, with the smallest LED image's span.
 
     Time runs left to right in milliseconds; phases are aligned for reading (on

@@ -55,7 +55,7 @@ CHORD_SHARE = 0.6
 
 
 @dataclass(frozen=True)
-class Modulation:
+class FrameFormat:
     """What the receiver knows of the site's frames: line code, word bits, chip rate, codewords."""
 
     code: LineCode
@@ -64,7 +64,7 @@ class Modulation:
     codewords: tuple[int, ...] | None = None  # word -> ID is index + 1; None: ID = word + 1
 
     @classmethod
-    def from_plan(cls, plan: PlanFile) -> Modulation:
+    def from_plan(cls, plan: PlanFile) -> FrameFormat:
         from planner.codes.check_bits import check_code
 
         mod, code = plan.modulation, plan.code
@@ -205,7 +205,7 @@ def chips_from_levels(levels: np.ndarray, rows_per_chip: float) -> str:
     return "".join(out)
 
 
-def decode_frame(image: np.ndarray, camera: Camera, modulation: Modulation, *,
+def decode_frame(image: np.ndarray, camera: Camera, modulation: FrameFormat, *,
                  blur_px: float = 1.0, exposure_s: float = 0.0) -> list[Blob]:
     """Every LED blob in ``image`` (uint8, height x width) with its ellipse and, where readable, its ID."""
     level, noise = _background(image)

@@ -25,7 +25,7 @@ from planner.ellipse import centre_and_shape
 from planner.errors import InputError, PlannerError
 from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
-from planner.twin.receiver import Blob, Modulation, decode_frame, read_blobs, snapshot
+from planner.twin.receiver import Blob, FrameFormat, decode_frame, read_blobs, snapshot
 from planner.twin.render import Frame, Sensor, render_frame
 
 if TYPE_CHECKING:
@@ -43,7 +43,7 @@ class Twin:
 
     site: Site
     chips: list[str]
-    modulation: Modulation
+    modulation: FrameFormat
     camera: Camera
     sensor: Sensor = Sensor()
     outline: list | None = None
@@ -54,7 +54,7 @@ class Twin:
         if chips is None:
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
-        return cls(Site.from_plan(plan), chips, Modulation.from_plan(plan), plan.camera_model(), sensor, plan.outline)
+        return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), plan.camera_model(), sensor, plan.outline)
 
 
 @dataclass(frozen=True)

@@ -206,7 +206,7 @@ def observe_poses(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Came
     return Observation(poses.position, pw, ws, per_m2, seed, tolerance_m, xyz, site)
 
 
-def observe(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, *, per_m2: float = POSES_PER_M2,
+def observe_site(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, *, per_m2: float = POSES_PER_M2,
             seed: int = 0, tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Observation:
     """Sample poses over the working area and find each pose's window."""
     poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
@@ -250,7 +250,7 @@ def verify_plan(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, ca
                 per_m2: float = POSES_PER_M2, seed: int = 0,
                 tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> Verification:
     """Sample poses and classify each as decodable, ambiguous, collinear or too few LEDs seen."""
-    obs = observe(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+    obs = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
     return classify(obs, ids)
 
 
