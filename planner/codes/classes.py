@@ -49,11 +49,12 @@ class Groups:
         return int(self.group.max()) + 1 if len(self.group) else 0
 
 
-def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> Groups:
-    """Group the windows and every triple of the site within the tolerance of one of them."""
+def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, matches: np.ndarray | None = None) -> Groups:
+    """Group the windows and every triple of the site within the tolerance of one of them (``matches``,
+    if already found: :func:`planner.codes.rivals.shape_matches` of these windows)."""
     xy = xyz[:, :2]
     win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0), xy)
-    everything = np.vstack([win, shape_matches(win, xyz, tolerance_m)])
+    everything = np.vstack([win, shape_matches(win, xyz, tolerance_m) if matches is None else matches])
     key = np.sort(everything, axis=1)
     _, first = np.unique(key, axis=0, return_index=True)  # windows come first, so they keep their flag
     triples = everything[np.sort(first)]

@@ -152,7 +152,7 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
         def index_for(K: int) -> pairwise.ConflictIndex | None:
             return index
     else:
-        groups = classes.shape_groups(proof.triangles, xyz, tolerance_m)
+        groups = classes.shape_groups(proof.triangles, xyz, tolerance_m, proof.shape_matches(tolerance_m))
         hopeless, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE * n, {"shape_groups": groups.count,
                                                                 "grouped_triples": len(groups.triples)}
 
@@ -166,7 +166,7 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
         if width is None:
             continue
         if width.begin(np.random.default_rng([seed, b]).integers(0, 2 ** b, n))[0] > hopeless:
-            continue  # measured: such widths stall (4 bits on the jittered sites of tests/test_window_set.py)
+            continue  # measured: such widths stall (4 bits on the jittered sites of tests/verify/test_window_set.py)
         labels, steps_of = pairwise.search(width, 2 ** b, seed=seed, max_steps=max_steps)
         tried.append(b)
         if labels is not None:

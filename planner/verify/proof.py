@@ -36,13 +36,13 @@ Pairs are tested first (an LED may be the unknown third member, so two are neede
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.camera import Camera
-from planner.codes.rivals import triples_of_pairs
+from planner.codes.rivals import shape_matches, triples_of_pairs
 from planner.errors import PlanningError
 from planner.verify.window_set import SAME_HEIGHT_M, empty_triangles, may_be_decoded
 from planner.verify.windows import twice_signed_area
@@ -407,21 +407,31 @@ def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: 
 
 @dataclass(frozen=True)
 class Proof:
-    """The outcome of :func:`prove_window_set`: the proved window set, or why there is none."""
+    """The outcome of :func:`prove_window_set` for the site ``xyz``: the proved window set, or why there is none."""
 
     triangles: np.ndarray | None
     reason: str
     envelope: dict | None
+    xyz: np.ndarray | None = None
+    _matches: dict[float, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def complete(self) -> bool:
         return self.triangles is not None
+
+    def shape_matches(self, tolerance_m: float) -> np.ndarray:
+        """The site's triples that can read like a proved window (:func:`planner.codes.rivals.shape_matches`),
+        found once per tolerance [m] however many schemes are judged against the proof."""
+        assert self.triangles is not None and self.xyz is not None
+        if tolerance_m not in self._matches:
+            self._matches[tolerance_m] = shape_matches(self.triangles, self.xyz, tolerance_m)
+        return self._matches[tolerance_m]
 
 
 def prove_window_set(xyz: np.ndarray, radii: np.ndarray, camera: Camera, install_tolerance_m: float) -> Proof:
     """Every triple that may be a window at some pose, or the reason this site and camera are not proved."""
     try:
         env = envelope(camera, xyz, radii, install_tolerance_m)
-        return Proof(possible_windows(xyz, radii, env), "", env.summary())
+        return Proof(possible_windows(xyz, radii, env), "", env.summary(), xyz)
     except NotProvable as exc:
         return Proof(None, str(exc), None)

@@ -93,10 +93,11 @@ def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_si
     if proof is not None and proof.triangles is not None:  # a complete proof
         tri = proof.triangles
         max_side_m = longest_side(tri, xyz)
+        site = proof.shape_matches(tolerance_m)
     else:
         tri = window_superset(xyz, radii, max_side_m, install_tolerance_m)
+        site = shape_matches(tri, xyz, tolerance_m)
     rivals: dict[int, list] = {}
-    site = shape_matches(tri, xyz, tolerance_m)
     for row, triple in find_rivals(tri, xyz, np.asarray(ids), tolerance_m, site=site):
         rivals.setdefault(row, []).append(triple)
     groups = sorted(([tuple(int(v) for v in tri[r])] + found for r, found in rivals.items()), key=lambda g: (-len(g), g))
