@@ -17,6 +17,7 @@ import serial
 
 from planner.cli.driver_sim import console_main
 from planner.firmware.image import CRC_OFFSET, IMAGE_BYTES, SIGNATURE_OFFSET, config_image, parse_config_image
+from planner.flash.keys import driver_key
 from planner.flash.sim import protocol_sim
 from planner.flash.sim.bus import Faults, SimBus, SimConfigError, make_bus
 from planner.flash.sim.driver import Flash, SimulatedDriver
@@ -45,12 +46,17 @@ SLOT = 192  # small slots keep the power-cut sweep short
 BLOCK = 64
 
 
-def make_image(version: int = 1, key: bytes | None = KEY, chips: str = "1100101011110000") -> bytes:
+def signed(image: bytes, key: bytes) -> bytes:
+    """``image`` with its signature field set to HMAC-SHA256 under ``key`` itself, CRC redone."""
+    body = image[:SIGNATURE_OFFSET] + hmac.new(key, image[:SIGNATURE_OFFSET], hashlib.sha256).digest()
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+def make_image(version: int = 1, key: bytes | None = KEY, chips: str = "1100101011110000",
+               serial: str = "SIM-000001") -> bytes:
+    """An image signed for the driver ``serial`` of the site with key ``key`` (None: unsigned)."""
     image = config_image("lum-1", 7, chips, 1000.0, "0123456789abcdef", image_version=version)
-    if key is not None:
-        image = image[:SIGNATURE_OFFSET] + hmac.new(key, image[:SIGNATURE_OFFSET], hashlib.sha256).digest()
-        image += struct.pack("<I", zlib.crc32(image))
-    return image
+    return image if key is None else signed(image, driver_key(key, serial))
 
 
 def sha(data: bytes) -> bytes:
@@ -126,19 +132,30 @@ def test_full_flash_makes_the_image_active_then_the_next_goes_to_the_other_slot(
     assert c.flash(v2) == (2, 2)  # the active image again: succeeds without a new record
 
 
-@pytest.mark.parametrize("case", ["unsigned", "altered", "wrong key"])
-def test_commit_refuses_images_not_signed_with_the_site_key(case):
-    image = {"unsigned": make_image(1, key=None), "wrong key": make_image(1, key=bytes(32))}.get(case)
+@pytest.mark.parametrize("case", ["unsigned", "altered", "other site", "another driver", "the site key itself"])
+def test_commit_refuses_images_not_signed_with_this_drivers_key(case):
+    image = {"unsigned": make_image(1, key=None), "other site": make_image(1, key=bytes(32)),
+             "another driver": make_image(1, serial="SIM-000002"),
+             "the site key itself": signed(make_image(1, key=None), KEY)}.get(case)
     if case == "altered":
-        signed = bytearray(make_image(1))
-        signed[40] ^= 0x01  # in the name, covered by the signature
-        image = bytes(signed[:CRC_OFFSET]) + struct.pack("<I", zlib.crc32(signed[:CRC_OFFSET]))
+        altered = bytearray(make_image(1))
+        altered[40] ^= 0x01  # in the name, covered by the signature
+        image = bytes(altered[:CRC_OFFSET]) + struct.pack("<I", zlib.crc32(altered[:CRC_OFFSET]))
     parse_config_image(image)  # a well-formed image: only the signature is wrong
     c = Client(driver())
     c.begin(image)
     c.write_from(image, 0)
     assert c.refused(Command.COMMIT, sha(image)) == (Status.AUTH, 0)
     assert c.hello().active_slot == 0
+
+
+def test_a_driver_keeps_only_its_own_derived_key_not_the_site_key():
+    d = driver()
+    held = [v for v in vars(d).values() if isinstance(v, bytes)]
+    assert driver_key(KEY, "SIM-000001") in held and KEY not in held
+    assert KEY not in d.flash.snapshot() and driver_key(KEY, "SIM-000001") not in d.flash.snapshot()
+    other = SimulatedDriver(2, "SIM-000002", KEY, Flash(SLOT), max_block=BLOCK)
+    assert Client(other, address=2).flash(make_image(1, serial="SIM-000002")) == (1, 1)  # its own image: taken
 
 
 def test_commit_checks_in_protocol_order():
@@ -271,7 +288,7 @@ def test_bus_delivers_to_the_addressed_driver_only():
     damaged = bytearray(encode(Packet(1, 0, 9, Command.HELLO)))
     damaged[3] ^= 0x10
     assert bus.send(bytes(damaged)) == [] and bus.drivers[0].stats.dropped == 1
-    Client(bus, address=2).flash(make_image(1))
+    Client(bus, address=2).flash(make_image(1, serial="SIM-000002"))
     assert [d.active_slot for d in bus.drivers] == [0, 1, 0]
     answers = [decode(f) for f in Deframer().feed(Client(bus).raw(Command.HELLO, address=ANY_ADDRESS))]
     assert [a.address for a in answers] == [1, 2, 3]  # "any driver" is for point to point: all answer

@@ -1,22 +1,23 @@
 """``vlp-flash PLAN --port PORT``: flash the luminaires' drivers with their configuration images.
 
+Each image is rebuilt from ``plan.yaml`` (and must equal ``firmware/<name>/vlp_config.bin``),
+then signed for the driver that answers, at the version docs/flashing.md describes.
 Interactive (default): one driver at a time on a point-to-point cable, the installer
 is told which luminaire to plug. ``--bus``: every driver on one multi-drop bus,
 addressed from ``--bus-map`` (else plan order from 1). Every result goes to the
 as-built journal at once; ``--resume`` skips drivers it records as verified.
 Exit codes: 0 every driver verified, 3 some failed (named; they keep their previous
-configuration), 1 bad input, 2 usage (missing, busy or unknown port).
+configuration), 1 bad input, 2 usage (missing, busy, unknown or lost port).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import hashlib
 import json
 import os
-import re
 import sys
+import urllib.parse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,12 +26,16 @@ from planner.cli import common as cli
 from planner.errors import ExitCode, InputError, UsageError
 
 if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
+    from planner.flash.flasher import Versions
+    from planner.flash.journal import Journal
     from planner.plan_file import Entry, PlanFile
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(prog="vlp-flash", description="Flash luminaire drivers over a serial link with the configuration "
-                    "images vlp-plan wrote (OUTDIR/firmware/), signed with the site key; verify and journal each.",
+    p = cli.Parser(prog="vlp-flash", description="Flash luminaire drivers over a serial link with their configuration "
+                    "images, rebuilt from the plan (they must equal the ones vlp-plan wrote in OUTDIR/firmware/) and "
+                    "signed with each driver's key (derived from the site key and the serial it reports); verify "
+                    "and journal each.",
                     epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input, 2 usage. Docs: "
                     "docs/flashing.md, docs/protocol.md.")
     p.add_argument("plan", metavar="PLAN", nargs="?", help="plan.yaml in a vlp-plan output directory")
@@ -43,6 +48,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--key-file", metavar="FILE", help="site key, hex or raw bytes (or env VLP_SITE_KEY, hex)")
     p.add_argument("--journal", metavar="JSON", help="as-built journal (default: as-built.json beside PLAN)")
     p.add_argument("--resume", action="store_true", help="skip drivers the journal records as verified")
+    p.add_argument("--image-version", type=cli.positive_int, metavar="N",
+                   help="sign exactly version N (drivers refuse one not above what they run); default: one above "
+                        "the version each driver runs, at least the version in the plan's images, and never over "
+                        "a newer image the journal shows came after this plan's (docs/flashing.md)")
     p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
     p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
     p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
@@ -72,13 +81,16 @@ def open_port(url: str, baud: int):
     except (serial.SerialException, ValueError, OSError) as exc:
         text = str(exc)
         if "lock" in text.lower() or "busy" in text.lower():
-            raise UsageError(f"--port {url}: busy: another program holds it; close it and retry") from None
-        raise UsageError(f"--port {url}: cannot open ({text}); serial ports here: {_ports_text()}") from None
+            raise UsageError(f"--port {shown_port(url)}: busy: another program holds it; close it and retry") from None
+        raise UsageError(f"--port {shown_port(url)}: cannot open ({text}); serial ports here: {_ports_text()}") from None
 
 
-def _shown_port(url: str) -> str:
-    """``url`` as the journal and ``--json`` record it: a ``sim://`` key is never written out."""
-    return re.sub(r"key=[^&]*", "key=<hidden>", url)
+def shown_port(url: str) -> str:
+    """``url`` as messages, the journal and ``--json`` show it: a ``sim://`` URL's key is never written out."""
+    head, sep, query = url.partition("?")
+    items = [("key=<hidden>" if urllib.parse.unquote_plus(item.partition("=")[0]).strip().lower() == "key" else item)
+             for item in query.split("&")]
+    return head + sep + "&".join(items)
 
 
 def _targets(plan: PlanFile, args) -> list[Entry]:
@@ -105,19 +117,46 @@ def _addresses(plan: PlanFile, path: str | None) -> dict[str, int]:
     return out
 
 
-def _image(doc_path: Path, entry: Entry, digest: str, key: bytes | None) -> bytes:
-    from planner.firmware.image import parse_config_image
-    from planner.firmware.render import file_name
-    from planner.flash.flasher import sign_image
+def plan_image(doc_path: Path, entry: Entry, digest: str) -> bytes:
+    """The unsigned image the plan gives ``entry``, at the version of its file on disk; :class:`InputError`
+    if the file is missing, damaged, of another plan, over the version bound, or differs in any byte."""
+    from planner.firmware.image import MAX_IMAGE_VERSION, config_image, parse_config_image
+    from planner.firmware.render import IMAGE_FILE, file_name
 
-    path = doc_path.parent / "firmware" / file_name(entry.name) / "vlp_config.bin"
+    path = doc_path.parent / "firmware" / file_name(entry.name) / IMAGE_FILE
     try:
-        image = path.read_bytes()
+        on_disk = path.read_bytes()
     except OSError:
         raise InputError(f"{path}: missing; run vlp-plan again (without --no-firmware)") from None
-    if parse_config_image(image)["plan_hash"] != digest:
+    try:
+        fields = parse_config_image(on_disk)
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}; run vlp-plan again") from None
+    if fields["plan_hash"] != digest:
         raise InputError(f"{path}: made for another plan than {doc_path}; run vlp-plan again")
-    return sign_image(image, key) if key else image
+    if fields["image_version"] > MAX_IMAGE_VERSION:
+        raise InputError(f"{path}: image version {fields['image_version']:,} is above the {MAX_IMAGE_VERSION:,} "
+                         "vlp-flash signs (a driver could never be updated again); run vlp-plan again")
+    if entry.frame is None:
+        raise InputError(f"{doc_path}: luminaire {entry.name!r} has no frame; make the plan with a vlp-plan that "
+                         "writes frames")
+    image = config_image(entry.name, entry.id, entry.frame.chips, entry.frame.chip_rate_hz, digest,
+                         image_version=fields["image_version"])
+    if image != on_disk:
+        given = parse_config_image(image)
+        wrong = [k for k in given if k != "crc32" and given[k] != fields[k]] or ["bytes"]
+        raise InputError(f"{path}: differs from what {doc_path.name} gives luminaire {entry.name} (ID {entry.id}) in "
+                         f"{', '.join(wrong)}: edited, or copied from another luminaire; vlp-flash signs only what "
+                         "the plan gives: run vlp-plan again")
+    return image
+
+
+def _versions(journal: Journal, e: Entry, image: bytes, explicit: int | None) -> Versions:
+    from planner.firmware.image import parse_config_image
+    from planner.flash.flasher import Versions
+
+    return Versions(floor=parse_config_image(image)["image_version"], explicit=explicit,
+                    journal=journal.last_verified(e.name))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -134,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     doc_path = Path(args.plan)
     from planner.flash.flasher import flash_driver
     from planner.flash.journal import Journal
-    from planner.flash.link import Link
+    from planner.flash.link import Link, PortLost
     from planner.flash.wire import ANY_ADDRESS
     from planner.plan import plan_hash
     from planner.plan_file import load_plan
@@ -142,15 +181,20 @@ def main(argv: list[str] | None = None) -> int:
     plan = load_plan(doc_path)
     digest = plan_hash(doc_path.read_text("utf-8"))
     targets = _targets(plan, args)
+    from planner.firmware.image import MAX_IMAGE_VERSION
+
+    if args.image_version is not None and args.image_version > MAX_IMAGE_VERSION:
+        raise UsageError(f"--image-version {args.image_version:,}: vlp-flash signs versions up to "
+                         f"{MAX_IMAGE_VERSION:,} (a driver at 2^32 - 1 could never be updated again)")
     key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
-    images = {e.name: _image(doc_path, e, digest, key) for e in targets}
+    images = {e.name: plan_image(doc_path, e, digest) for e in targets}
     where = _addresses(plan, args.bus_map) if args.bus else {}
     if args.bus and (absent := [e.name for e in targets if e.name not in where]):
         raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
     journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest)
     if args.dry_run:
         for e in targets:
-            skip = args.resume and journal.done(e.name, hashlib.sha256(images[e.name]).hexdigest())
+            skip = args.resume and journal.verified(e.name, args.image_version) is not None
             action = "skip" if skip else "verify" if args.verify_only else "flash"
             report.append({"name": e.name, "id": e.id, "address": where[e.name] if args.bus else None,
                            "action": action})
@@ -164,12 +208,14 @@ def main(argv: list[str] | None = None) -> int:
     if not args.bus and not sys.stdin.isatty():
         raise UsageError("interactive mode asks the installer to plug each driver and needs a terminal; "
                          "use --bus for a batch without prompts")
-    port, shown = open_port(args.port, args.baud), _shown_port(args.port)
-    link, failed = Link(port, args.baud), []
+    assert key is not None  # only a dry run goes without
+    journal.check_writable()
+    port, shown = open_port(args.port, args.baud), shown_port(args.port)
+    link, failed, name = Link(port, args.baud), [], ""
     try:
         for k, e in enumerate(targets, 1):
             name, image = e.name, images[e.name]
-            if args.resume and journal.done(name, hashlib.sha256(image).hexdigest()):
+            if args.resume and journal.verified(name, args.image_version):
                 print(f"[{k}/{len(targets)}] {name}: skipped (journal: verified)", file=say)
                 report.append({"name": name, "id": e.id, "status": "skipped", "verified": True})
                 continue
@@ -181,13 +227,16 @@ def main(argv: list[str] | None = None) -> int:
                 if answer == "s":
                     continue
             address = where.get(name, ANY_ADDRESS)
-            result = flash_driver(link, address, image, verify_only=args.verify_only)
+            result = flash_driver(link, address, image, key, _versions(journal, e, image, args.image_version),
+                                  verify_only=args.verify_only)
             journal.record(name, e.id, f"{shown}@{address}" if args.bus else shown, result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
-            print(f"[{k}/{len(targets)}] {name}: driver {result.serial or '?'}: {text} ({result.seconds:.2f} s)"
+            version = f"version {result.image_version}, " if result.image_version else ""
+            print(f"[{k}/{len(targets)}] {name}: driver {result.serial or '?'}: {text} ({version}{result.seconds:.2f} s)"
                   + (f": {result.message}" if result.message else ""), file=say, flush=True)
             report.append({"name": name, "id": e.id, "address": address if args.bus else None,
                            "serial": result.serial, "status": result.status, "verified": result.verified,
+                           "image_version": result.image_version, "active_version": result.active_version,
                            "seconds": round(result.seconds, 3), "message": result.message})
             if not result.verified:
                 failed.append(name)
@@ -195,8 +244,15 @@ def main(argv: list[str] | None = None) -> int:
                 done = int(30 * k / len(targets))
                 print(f"\r  [{'#' * done}{'.' * (30 - done)}] {k}/{len(targets)}, {len(failed)} failed",
                       end="" if k < len(targets) else "\n", file=sys.stderr, flush=True)
+    except PortLost as exc:
+        done = sum(1 for t in targets if journal.verified(t.name))
+        raise PortLost(f"--port {shown}: lost while flashing {name}: {exc}; {done} of {len(targets)} driver(s) "
+                       f"verified in {journal.path}: reconnect and rerun with --resume") from None
     finally:
-        port.close()
+        try:
+            port.close()
+        except OSError:
+            pass  # the port is gone already
     if args.json:
         print(json.dumps({"plan": str(doc_path), "port": shown, "journal": str(journal.path), "drivers": report,
                           "verified": sum(r["verified"] for r in report), "failed": len(failed)}, indent=2))

@@ -16,6 +16,9 @@ IMAGE_MAGIC = b"VLPC"
 IMAGE_FORMAT_VERSION = 1
 NAME_BYTES = 32
 MAX_IMAGE_CHIPS = 512  # the image's 64-byte chip area
+MAX_IMAGE_VERSION = 1_000_000
+"""Highest image version the planner writes or vlp-flash signs: a version near 2^32 would leave a
+driver no newer version to move to (docs/flashing.md); a million re-plans leave room enough."""
 # magic, format version, header length, total length | name, id, chip rate [mHz], chip count,
 # reserved | chips | image version, plan hash | signature | CRC-32 (docs/firmware.md has offsets)
 _HEADER = struct.Struct("<4sHHI")
@@ -46,8 +49,9 @@ def config_image(name: str, luminaire_id: int, chips: str, chip_rate_hz: float, 
     millihz = round(chip_rate_hz * 1000)
     if not 0 < millihz < 2**32:
         raise InputError(f"luminaire {name!r}: chip rate {chip_rate_hz:g} Hz does not fit the image (u32 mHz)")
-    if not 0 <= image_version < 2**32:
-        raise UsageError(f"image version {image_version} must be in [0, 2^32)")
+    if not 0 <= image_version <= MAX_IMAGE_VERSION:
+        raise UsageError(f"image version {image_version:,} must be in 0..{MAX_IMAGE_VERSION:,} (docs/flashing.md, "
+                         "image versions)")
     body = _BODY.pack(IMAGE_MAGIC, IMAGE_FORMAT_VERSION, _HEADER.size, IMAGE_BYTES, raw_name, luminaire_id,
                       millihz, len(chips), 0, pack_chips(chips), image_version, bytes.fromhex(plan_hash)) + bytes(SIGNATURE_BYTES)
     return body + struct.pack("<I", zlib.crc32(body))

@@ -1,10 +1,12 @@
-"""Flashing one driver: sign its image, transfer, verify by hash, commit, confirm (docs/protocol.md).
+"""Flashing one driver: choose the version, sign for that driver, transfer, verify, commit, confirm.
 
-Safe by construction: the image is signed with the site key, written into the
-driver's inactive slot, read back by hash before the commit, and confirmed active
-after it; an interrupted transfer resumes from what the driver reports. A driver
-that cannot be brought to the new image is reported failed and still holds its
-previous valid configuration (the protocol never touches the active slot).
+Safe by construction: the host signs only the image the plan gives (rebuilt by the
+caller from ``plan.yaml``), at the version it chooses from what the driver reports
+(docs/flashing.md, image versions), with the key of the serial the driver reports
+(:func:`~planner.flash.keys.driver_key`). The image goes into the driver's inactive
+slot, is read back by hash before the commit and confirmed active after it; an
+interrupted transfer resumes from what the driver reports. Whatever happens, the
+result says what the driver last reported it holds (asked again after a failure).
 """
 
 from __future__ import annotations
@@ -15,9 +17,11 @@ import struct
 import time
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
+from planner.errors import PlannerError
+from planner.firmware.image import CRC_OFFSET, MAX_IMAGE_VERSION, SIGNATURE_OFFSET, config_image, parse_config_image
+from planner.flash.keys import driver_key
 from planner.flash.link import Link, LinkError
 from planner.flash.wire import (
     BEGIN_REPLY,
@@ -38,25 +42,58 @@ from planner.flash.wire import (
 SESSIONS = 3
 """Whole BEGIN..COMMIT attempts per driver before it is reported failed."""
 
+ASK_AFTER_FAILURE = 2
+"""HELLO requests (each with the link's retries) that ask a failed driver what it runs."""
 
-def sign_image(image: bytes, site_key: bytes) -> bytes:
-    """The image with its signature field set to HMAC-SHA256(site key, bytes before it), CRC redone."""
-    body = image[:SIGNATURE_OFFSET] + hmac.new(site_key, image[:SIGNATURE_OFFSET], hashlib.sha256).digest()
+FINAL = (Status.AUTH, Status.ROLLBACK, Status.IMAGE, Status.TOO_LARGE)
+"""Refusals of the image itself: retrying cannot help."""
+
+
+def sign_image(image: bytes, key: bytes) -> bytes:
+    """The image with its signature field set to HMAC-SHA256(key, bytes before it), CRC redone."""
+    body = image[:SIGNATURE_OFFSET] + hmac.new(key, image[:SIGNATURE_OFFSET], hashlib.sha256).digest()
     assert len(body) == CRC_OFFSET
     return body + struct.pack("<I", zlib.crc32(body)) + image[CRC_OFFSET + 4:]
 
 
+def at_version(image: bytes, version: int) -> bytes:
+    """The unsigned ``image`` with version ``version``: what ``config_image`` gives for its fields."""
+    f = parse_config_image(image)
+    return config_image(f["name"], f["id"], f["chips"], f["chip_rate_hz"], f["plan_hash"], image_version=version)
+
+
+@dataclass(frozen=True)
+class Versions:
+    """Which version to sign (docs/flashing.md, image versions).
+
+    ``explicit`` (``--image-version``): exactly that one, the driver refuses it if not newer.
+    Otherwise the version follows the driver: one above the version it runs, at least ``floor``
+    (the version in the plan's image files); and if ``journal`` (serial, version) says this plan's
+    image was verified on this very driver, a newer image found there since is not replaced.
+    """
+
+    floor: int = 1
+    explicit: int | None = None
+    journal: tuple[str, int] | None = None
+
+
 @dataclass(frozen=True)
 class FlashResult:
-    """What happened to one driver."""
+    """What happened to one driver, and what it last reported holding."""
 
     status: str  # "flashed", "current" (already held this image), "verified" (verify-only), "failed"
     serial: str = ""
-    image_sha256: str = ""
-    active_version: int = 0
+    image_sha256: str = ""  # the signed image meant for this driver ("" if it never answered)
+    image_version: int = 0
+    active_version: int = 0  # what the driver last reported (0: none, or never answered)
+    active_sha256: str = ""
     verified: bool = False
     message: str = ""
     seconds: float = 0.0
+
+
+class _Refused(PlannerError):
+    """The host will not sign for this driver (a rollback, a version out of bounds)."""
 
 
 def _hello(link: Link, address: int) -> Hello:
@@ -67,6 +104,37 @@ def _hello(link: Link, address: int) -> Hello:
                         f"{hello.capabilities:#04x}; vlp-flash needs protocol {PROTOCOL_VERSION} with A/B slots, "
                         "resume and HMAC (update the driver's firmware)")
     return hello
+
+
+def _key(site_key: bytes, serial: str) -> bytes:
+    try:
+        return driver_key(site_key, serial)
+    except ValueError as exc:
+        raise LinkError(f"{exc}: the driver's serial cannot name its key (check its firmware)", Status.IMAGE) from None
+
+
+def _holds(hello: Hello, image: bytes, key: bytes) -> bytes | None:
+    """The signed image of the plan the driver runs (at its reported version), or None if it runs another."""
+    if not hello.active_slot or not 0 <= hello.active_version <= MAX_IMAGE_VERSION:
+        return None
+    signed = sign_image(at_version(image, hello.active_version), key)
+    return signed if hashlib.sha256(signed).digest() == hello.active_sha256 else None
+
+
+def choose_version(hello: Hello, versions: Versions) -> int:
+    """The version to sign for a driver that runs another image; :class:`_Refused` says what to do."""
+    running = hello.active_version if hello.active_slot else 0
+    if versions.explicit is not None:
+        return versions.explicit
+    if versions.journal and versions.journal[0] == hello.serial and running >= versions.journal[1]:
+        raise _Refused(f"runs version {running}, flashed after this plan's image (version {versions.journal[1]}, "
+                       f"journal): this plan is older than what the driver runs; flash the newer plan, or give "
+                       f"--image-version {running + 1} to put this plan's image back deliberately")
+    version = max(versions.floor, running + 1)
+    if version > MAX_IMAGE_VERSION:
+        raise _Refused(f"runs version {running:,}, and vlp-flash signs versions up to {MAX_IMAGE_VERSION:,} only: "
+                       "the driver's image did not come from vlp-flash; erase its configuration and flash again")
+    return version
 
 
 def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int, sha: bytes,
@@ -95,36 +163,70 @@ def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int
     link.request(address, Command.COMMIT, COMMIT_REQUEST.pack(sha), driver_s=2 * block_s)
 
 
-def flash_driver(link: Link, address: int, signed_image: bytes, *, verify_only: bool = False,
-                 progress: Callable[[int, int], None] | None = None) -> FlashResult:
-    """Bring the driver at ``address`` to ``signed_image`` (or, ``verify_only``, check it holds it)."""
+def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions = Versions(), *,
+                 verify_only: bool = False, progress: Callable[[int, int], None] | None = None) -> FlashResult:
+    """Bring the driver at ``address`` to the plan's ``image`` (unsigned; or, ``verify_only``, check it runs it)."""
     started = time.perf_counter()
-    version = parse_config_image(signed_image)["image_version"]
-    sha = hashlib.sha256(signed_image).digest()
-    serial, last, wrote = "", "", False
+    result, wrote = FlashResult("failed"), False
     for _ in range(SESSIONS):
         try:
             hello = _hello(link, address)
-            serial = hello.serial
-            if hello.active_sha256 == sha or verify_only:
-                ok = hello.active_sha256 == sha
-                status = "verified" if verify_only and ok else "flashed" if ok and wrote else "current" if ok else "failed"
-                return FlashResult(status, serial,
-                                   sha.hex(), hello.active_version, ok,
-                                   "" if ok else "the driver holds another image", time.perf_counter() - started)
-            if len(signed_image) > hello.slot_size:
-                return FlashResult("failed", serial, sha.hex(), hello.active_version, False,
-                                   f"image of {len(signed_image)} bytes exceeds the driver's {hello.slot_size}-byte slot",
-                                   time.perf_counter() - started)
+            key = _key(site_key, hello.serial)
+            result = replace(result, serial=hello.serial, active_version=hello.active_version,
+                             active_sha256=hello.active_sha256.hex())
+            held = _holds(hello, image, key)
+            if held is not None:
+                status = "verified" if verify_only else "flashed" if wrote else "current"
+                return replace(result, status=status, image_sha256=result.active_sha256, verified=True, message="",
+                               image_version=hello.active_version, seconds=time.perf_counter() - started)
+            if verify_only:
+                result = replace(result, message="the driver holds another image")
+                break
+            version = choose_version(hello, versions)
+            signed = sign_image(at_version(image, version), key)
+            sha = hashlib.sha256(signed).digest()
+            result = replace(result, image_sha256=sha.hex(), image_version=version)
+            if len(signed) > hello.slot_size:
+                result = replace(result, message=f"image of {len(signed)} bytes exceeds the driver's "
+                                                 f"{hello.slot_size}-byte slot")
+                break
             wrote = True
-            _transfer(link, address, hello, signed_image, version, sha, progress)
-            after = _hello(link, address)
-            if after.active_sha256 == sha:
-                return FlashResult("flashed", serial, sha.hex(), after.active_version, True, "",
-                                   time.perf_counter() - started)
-            last = "after COMMIT the driver reports another active image"
+            _transfer(link, address, hello, signed, version, sha, progress)  # the next HELLO confirms
+            result = replace(result, message="after COMMIT the driver reports another active image")
+        except _Refused as exc:
+            result = replace(result, message=str(exc))
+            break
         except LinkError as exc:
-            last = str(exc)
-            if exc.status in (Status.AUTH, Status.ROLLBACK, Status.IMAGE, Status.TOO_LARGE):
-                break  # the driver refuses this image: retrying cannot help
-    return FlashResult("failed", serial, sha.hex(), 0, False, last, time.perf_counter() - started)
+            message = str(exc)
+            if exc.status == Status.ROLLBACK:
+                message += (f"; the driver runs version {exc.detail}: leave out --image-version to follow it, or give "
+                            f"--image-version {exc.detail + 1} or more")
+            result = replace(result, message=message)
+            if exc.status in FINAL:
+                break
+    return _asked(link, address, image, site_key, result, wrote, verify_only, started)
+
+
+def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: FlashResult, wrote: bool,
+           verify_only: bool, started: float) -> FlashResult:
+    """``result`` after a failure, with what the driver now reports (it may run the new image after all)."""
+    if not result.serial:  # it never answered: nothing was written, and it will not answer now
+        return replace(result, seconds=time.perf_counter() - started)
+    for _ in range(ASK_AFTER_FAILURE):
+        try:
+            hello = _hello(link, address)
+            held = _holds(hello, image, _key(site_key, hello.serial))
+            break
+        except LinkError:
+            continue
+    else:  # silent: what it runs is unknown (it may have taken the image before it fell silent)
+        unknown = "; it did not answer afterwards, so what it runs is unknown" if wrote else ""
+        return replace(result, active_sha256="" if wrote else result.active_sha256, message=result.message + unknown,
+                       seconds=time.perf_counter() - started)
+    result = replace(result, serial=hello.serial, active_version=hello.active_version,
+                     active_sha256=hello.active_sha256.hex(), seconds=time.perf_counter() - started)
+    if held is not None:
+        status = "verified" if verify_only else "flashed" if wrote else "current"
+        return replace(result, status=status, verified=True, message="", image_sha256=result.active_sha256,
+                       image_version=hello.active_version)
+    return result

@@ -1,62 +1,116 @@
-"""The as-built journal: which driver got which image, when, and whether it was verified.
+"""The as-built journal: which driver got which image, when, and what each driver reported holding.
 
-One JSON file (format ``vlp-asbuilt/1``), rewritten atomically after every driver
-(temporary file, then rename), so an interrupted batch leaves a complete journal
-that ``vlp-flash --resume`` reads to skip finished drivers. The site key never
-enters it.
+One JSON file (format ``vlp-asbuilt/1``) per plan. After every driver the entry is
+merged into the file under a lock (``fcntl.flock`` on ``.<name>.lock`` beside it:
+re-read, update that one luminaire, replace atomically), so two ``vlp-flash`` runs
+on one plan both end with every entry, and an interrupted batch leaves a complete
+journal that ``vlp-flash --resume`` reads to skip finished drivers. No key enters it.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
 from planner._files import load_json, write_text_atomically
-from planner.errors import InputError
+from planner.errors import InputError, UsageError
 from planner.flash.flasher import FlashResult
 
 FORMAT = "vlp-asbuilt/1"
+HOLDS_IMAGE = ("flashed", "current", "verified")
+"""Statuses meaning the driver runs this plan's image (with ``verified`` true)."""
 
 
 class Journal:
-    """The journal at ``path`` for the plan with hash ``plan_hash``."""
+    """The journal at ``path`` for the plan with hash ``plan_hash`` (read at once if it exists)."""
 
     def __init__(self, path: str | Path, plan_hash: str):
         self.path = Path(path)
         self.plan_hash = plan_hash
-        self.entries: dict[str, dict] = {}
-        if self.path.exists():
-            try:
-                doc = load_json(self.path, "journal")
-            except InputError as exc:
-                raise InputError(f"{exc}; move it away to start a new one") from None
-            if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-                raise InputError(f"{self.path}: not a {FORMAT} journal; move it away to start a new one")
-            if doc.get("plan_hash") != plan_hash:
-                raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan ({plan_hash}); "
-                                 "give another --journal for a new plan")
-            entries = doc.get("luminaires", {})
-            if not isinstance(entries, dict) or not all(isinstance(k, str) and isinstance(v, dict)
-                                                        for k, v in entries.items()):
-                raise InputError(f"{self.path}: luminaires must map each name to its record; the journal was "
-                                 "edited or damaged: move it away to start a new one")
-            self.entries = dict(entries)
+        self.lock_path = self.path.with_name(f".{self.path.name}.lock")
+        self.entries = self._read()
 
-    def done(self, name: str, image_sha256: str) -> bool:
-        """True if ``name`` was flashed with this image and verified."""
+    def _read(self) -> dict[str, dict]:
+        if self.path.is_dir():
+            raise UsageError(f"--journal {self.path}: is a folder; give a file name such as as-built.json")
+        if not self.path.exists():
+            return {}
+        try:
+            doc = load_json(self.path, "journal")
+        except InputError as exc:
+            raise InputError(f"{exc}; move it away to start a new one") from None
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            raise InputError(f"{self.path}: not a {FORMAT} journal; move it away to start a new one")
+        if doc.get("plan_hash") != self.plan_hash:
+            raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan "
+                             f"({self.plan_hash}); give another --journal for a new plan")
+        entries = doc.get("luminaires", {})
+        if not isinstance(entries, dict) or not all(isinstance(k, str) and isinstance(v, dict)
+                                                    for k, v in entries.items()):
+            raise InputError(f"{self.path}: luminaires must map each name to its record; the journal was "
+                             "edited or damaged: move it away to start a new one")
+        return dict(entries)
+
+    def check_writable(self) -> None:
+        """Refuse (before anything is flashed) a journal that could not be written: a missing or read-only folder."""
+        with self._locked():
+            if not os.access(self.path.parent, os.W_OK | os.X_OK):
+                raise UsageError(f"--journal {self.path}: the folder is not writable; choose another --journal")
+
+    @contextmanager
+    def _locked(self) -> Iterator[None]:
+        try:
+            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise UsageError(f"--journal {self.path}: cannot write there ({exc.strerror}); choose a folder that "
+                             "exists and is writable") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)  # released when the file is closed
+            yield
+        finally:
+            os.close(fd)
+
+    def verified(self, name: str, image_version: int | None = None) -> dict | None:
+        """The entry of ``name`` if it records this plan's image verified (at ``image_version``, if given)."""
         e = self.entries.get(name)
-        return bool(e and e.get("verified") and e.get("image_sha256") == image_sha256)
+        if not (e and e.get("verified") and e.get("status") in HOLDS_IMAGE):
+            return None
+        return e if image_version is None or self.version(e) == image_version else None
+
+    @staticmethod
+    def version(entry: dict) -> int:
+        """The image version an entry records (journals before image_version had active_version only)."""
+        value = entry.get("image_version", entry.get("active_version"))
+        return value if isinstance(value, int) else 0
+
+    def last_verified(self, name: str) -> tuple[str, int] | None:
+        """(driver serial, image version) of the last time this plan's image was verified on ``name``'s driver,
+        kept through later failures: a newer image found there since is not this plan's to replace."""
+        e = self.entries.get(name) or {}
+        proof = e.get("last_verified") if not self.verified(name) else e
+        if not isinstance(proof, dict) or not isinstance(proof.get("driver_serial"), str):
+            return None
+        return proof["driver_serial"], self.version(proof)
 
     def record(self, name: str, luminaire_id: int, where: str, result: FlashResult) -> None:
-        self.entries[name] = {
+        """Merge ``name``'s entry into the file on disk, under the lock (other runs' entries are kept)."""
+        entry = {
             "id": luminaire_id, "where": where, "driver_serial": result.serial, "status": result.status,
-            "verified": result.verified, "image_sha256": result.image_sha256,
-            "active_version": result.active_version, "message": result.message,
-            "time": datetime.now(UTC).isoformat(timespec="seconds"),
+            "verified": result.verified, "image_sha256": result.image_sha256, "image_version": result.image_version,
+            "active_version": result.active_version, "active_sha256": result.active_sha256,
+            "message": result.message, "time": datetime.now(UTC).isoformat(timespec="seconds"),
         }
-        self.save()
-
-    def save(self) -> None:
-        doc = {"format": FORMAT, "plan_hash": self.plan_hash, "luminaires": dict(sorted(self.entries.items()))}
-        write_text_atomically(self.path, json.dumps(doc, indent=2) + "\n")
+        with self._locked():
+            self.entries = self._read()
+            if result.verified:
+                entry["last_verified"] = {"driver_serial": result.serial, "image_version": result.image_version}
+            elif (proof := self.last_verified(name)) is not None:
+                entry["last_verified"] = {"driver_serial": proof[0], "image_version": proof[1]}
+            self.entries[name] = entry
+            doc = {"format": FORMAT, "plan_hash": self.plan_hash, "luminaires": dict(sorted(self.entries.items()))}
+            write_text_atomically(self.path, json.dumps(doc, indent=2) + "\n")

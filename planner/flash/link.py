@@ -12,7 +12,7 @@ import secrets
 import time
 from dataclasses import dataclass, field
 
-from planner.errors import PlannerError
+from planner.errors import PlannerError, UsageError
 from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status, WireError, decode, encode, parse_error
 
 RETRIES = 4
@@ -26,6 +26,10 @@ class LinkError(PlannerError):
         super().__init__(message)
         self.status = status
         self.detail = detail
+
+
+class PortLost(UsageError):
+    """The serial port itself failed (adapter unplugged, the far end gone): no driver can answer."""
 
 
 @dataclass
@@ -76,9 +80,12 @@ class Link:
             for attempt in range(self.retries + 1):
                 if attempt:
                     self.stats.retries += 1
-                self.port.write(frame)
-                self.stats.bytes_sent += len(frame)
-                reply = self._await(address, command, timeout)
+                try:
+                    self.port.write(frame)
+                    self.stats.bytes_sent += len(frame)
+                    reply = self._await(address, command, timeout)
+                except OSError as exc:  # pyserial's SerialException is an OSError
+                    raise PortLost(f"the serial port failed during {command.name} ({exc})") from None
                 if reply is None:
                     continue
                 if reply.is_error:

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from planner.errors import InputError, UsageError
 from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, parse_config_image
+from planner.flash.keys import driver_key
 from planner.flash.sim.memory import ERASED, HEADER_BYTES, RECORD_BYTES, CommitRecord, Flash, PowerCut, StagingHeader
 from planner.flash.wire import (
     ANY_ADDRESS,
@@ -69,7 +70,10 @@ class DriverStats:
 
 
 class SimulatedDriver:
-    """One driver at bus ``address`` with serial ``serial`` and the site key ``site_key``.
+    """One driver at bus ``address`` with serial ``serial``, provisioned from the site key ``site_key``.
+
+    The driver keeps only its own key, :func:`~planner.flash.keys.driver_key` of the site key and
+    its serial (docs/protocol.md section 7), derived here; the site key itself is not kept.
 
     ``flash`` defaults to a RAM flash of ``slot_size`` (default 4096) bytes per slot; ``max_block`` is the
     most data one WRITE may carry, ``block_write_us`` the programming time HELLO reports [us].
@@ -90,7 +94,7 @@ class SimulatedDriver:
         self.flash = flash if flash is not None else Flash(slot_size or 4096)
         self.address, self.serial, self.max_block, self.block_write_us = address, serial, max_block, block_write_us
         self.slot_size = self.flash.slot_size
-        self._key = bytes(site_key)
+        self._key = driver_key(bytes(site_key), serial)  # the site key is not kept
         self.stats = DriverStats()
         self._boot()
 
@@ -252,7 +256,7 @@ class SimulatedDriver:
             raise _Refuse(Status.IMAGE, 0, f"image holds version {version}, BEGIN announced {staging.version}")
         mac = hmac.new(self._key, image[:SIGNATURE_OFFSET], hashlib.sha256).digest()
         if not hmac.compare_digest(mac, image[SIGNATURE_OFFSET:CRC_OFFSET]):
-            raise _Refuse(Status.AUTH, 0, "signature is not this site's HMAC-SHA256")
+            raise _Refuse(Status.AUTH, 0, "signature is not HMAC-SHA256 under this driver's key")
         if self._active and (version < self._active.version or
                              (version == self._active.version and digest != self._active.sha256)):
             raise _Refuse(Status.ROLLBACK, self._active.version, f"active version is {self._active.version}")
