@@ -67,11 +67,17 @@ def shape_matches(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> n
         return win
     site = counter_clockwise(site_triples(xy, longest_side(win, xyz) + tolerance_m + 1e-9), xy)
     grain = 1e-7  # shapes this close are one (a lattice's windows have a few hundred shapes) [m]
-    shapes = np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)])
-    shapes = np.unique(np.round(shapes / grain), axis=0) * grain
-    reach = tolerance_m + grain + 1e-9
-    near, _ = cKDTree(shapes).query(sides(site, xyz), k=1, p=np.inf, distance_upper_bound=reach)
-    return site[np.isfinite(near)]
+    exact = np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)])
+    shapes = np.unique(np.round(exact / grain), axis=0) * grain
+    reach = tolerance_m + 1e-9
+    lengths = sides(site, xyz)
+    near, _ = cKDTree(shapes).query(lengths, k=1, p=np.inf, distance_upper_bound=reach + grain)
+    keep = near <= reach - grain  # certainly within reach of the exact shape the rounded one stands for
+    unsure = np.flatnonzero(np.isfinite(near) & ~keep)  # within a grain of the border: ask the exact shapes
+    if len(unsure):
+        exact_near, _ = cKDTree(exact).query(lengths[unsure], k=1, p=np.inf, distance_upper_bound=reach)
+        keep[unsure] = np.isfinite(exact_near)
+    return site[keep]
 
 
 def counter_clockwise(triples: np.ndarray, xy: np.ndarray) -> np.ndarray:
