@@ -1,6 +1,7 @@
 """Shared test helpers: synthetic layouts, the bundled 512 grid planned once per run, and the
 ``slow`` marker (``pytest -m "not slow"`` is the fast subset: see the README)."""
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,15 @@ def jittered_xy(seed: int = 7) -> np.ndarray:
     pts = 0.6 * np.column_stack([c.ravel(), r.ravel()]).astype(float)
     keep = rng.random(len(pts)) >= 0.2
     return pts[keep] + rng.uniform(-0.12, 0.12, (int(keep.sum()), 2))
+
+
+def poisson_xy(n: int, spacing: float, seed: int) -> np.ndarray:
+    """Dart throwing: up to n points at least ``spacing`` apart in a square sized for about n."""
+    rng, side, pts = np.random.default_rng(seed), spacing * math.sqrt(n) * 1.1, []
+    for p in rng.uniform(0, side, (40 * n, 2)):
+        if all(np.hypot(*(p - q)) >= spacing for q in pts):
+            pts.append(p)
+    return np.array(pts[:n])
 
 
 def hex_xy(rows: int, cols: int, pitch: float = 1.0) -> np.ndarray:

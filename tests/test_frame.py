@@ -1,16 +1,14 @@
 """Frames: line codes, the preamble's uniqueness, run limits, decoding from any phase, chip-rate limits."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import ROOT
 from planner.errors import InputError, PlanningError
 from planner.frame import FOUR_B_SIX_B, LINE_CODES, decode_stream, frame_chips, longest_run
 from planner.modulation import choose_timing
 from planner.plan_file import load_plan
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_4b6b_table_is_balanced_and_one_to_one():

@@ -1,4 +1,4 @@
-/* Host harness for a generated vlp_config.h (tests/test_firmware.py builds it with
+/* Host harness for a generated vlp_config.h (tests/firmware/test_firmware.py builds it with
  * gcc -std=c99 -pedantic -Wall -Wextra -Werror -I <luminaire folder>).
  * Prints the header's numbers, two frame periods of chips via vlp_chip(), and the
  * name and line code strings, so the test can compare them with Python's. */

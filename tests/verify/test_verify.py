@@ -3,7 +3,6 @@ import itertools
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +10,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_xy
+from conftest import ROOT, grid_xy
 from planner.camera import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.rivals import find_rivals
 from planner.codes.schemes import assign_window
@@ -20,8 +19,6 @@ from planner.graph import build_graph
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import AMBIGUOUS, DECODABLE, verify_plan
 from planner.verify.windows import PoseSample, canonical_windows, find_windows, sample_poses, working_area
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_disc_images_match_dense_rim_sampling():

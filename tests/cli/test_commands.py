@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 import planner
+from conftest import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 COMMANDS = tuple(sorted(ep.name for ep in metadata.distribution("vlp-plan").entry_points if ep.group == "console_scripts"))
 
 

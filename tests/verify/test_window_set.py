@@ -1,12 +1,11 @@
 """The window set: the empty-triangle rule holds for every window any sampled pose produces."""
-import math
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, grid_xy, hex_xy, jittered_xy
+from conftest import ROOT, grid_xy, hex_xy, jittered_xy, poisson_xy
 from planner.camera import Camera
 from planner.layout.model import Layout, Luminaire, area_m2
 from planner.pipeline import PlanOptions, make_plan, read_layout
@@ -14,16 +13,6 @@ from planner.verify.proof import envelope
 from planner.verify.verify import AMBIGUOUS, classify, observe_site
 from planner.verify.window_set import empty_triangles, window_superset
 from planner.verify.windows import POSES_PER_M2, find_windows, sample_poses, working_area
-
-
-def poisson_xy(n: int, spacing: float, seed: int) -> np.ndarray:
-    """Dart throwing: up to n points at least ``spacing`` apart in a square sized for about n."""
-    rng, side, pts = np.random.default_rng(seed), spacing * math.sqrt(n) * 1.1, []
-    for p in rng.uniform(0, side, (40 * n, 2)):
-        if all(np.hypot(*(p - q)) >= spacing for q in pts):
-            pts.append(p)
-    return np.array(pts[:n])
-
 
 sites = st.one_of(
     st.builds(lambda r, c, j, s: grid_xy(r, c, 0.5, 0.5, jitter_m=j, seed=s),

@@ -1,11 +1,11 @@
 """vlp-locate: identifying luminaires from a plan whose IDs repeat, then positioning; its errors."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import ROOT
 from planner.camera import Camera, rotation_from_angles
 from planner.cli.locate import console_main
 from planner.cli.plan import main as plan_main
@@ -15,8 +15,6 @@ from planner.plan_file import load_plan
 from planner.positioning.locate import Site, Snapshot, identify, locate
 from planner.positioning.observation import observe
 from planner.verify.windows import sample_poses, working_area
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")

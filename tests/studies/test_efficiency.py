@@ -1,17 +1,16 @@
 """Coding efficiency: the paper's table regenerated, the curve, the plot, and vlp-efficiency."""
 
 import json
-from pathlib import Path
 
 import pytest
 
+from conftest import ROOT
 from planner.cli.efficiency import console_main
 from planner.cli.plan import main as plan_main
 from planner.defaults import PAPER_LAYOUTS
 from planner.pipeline import read_layout
 from planner.studies.efficiency import curve, efficiency, lattice_layout, paper_grid, table_row
 
-ROOT = Path(__file__).resolve().parents[1]
 SMALL = ["--sizes", "16,64,256", "--window-up-to", "64"]
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import ezdxf
 import numpy as np
@@ -13,13 +12,14 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 import dxf_factory as factory
+from conftest import ROOT
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf import read_dxf
 from planner.layout.dxf_units import PREFERENCE, SPACING_RANGE_M
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M
 
-LAYOUTS = Path(__file__).resolve().parents[1] / "layouts"
+LAYOUTS = ROOT / "layouts"
 
 
 @pytest.fixture

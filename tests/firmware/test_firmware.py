@@ -3,7 +3,7 @@
 Golden files live in tests/golden/firmware/. After an intended change to the templates or
 the image layout, regenerate them with
 
-    VLP_UPDATE_GOLDEN=1 python -m pytest -q tests/test_firmware.py -k golden
+    VLP_UPDATE_GOLDEN=1 python -m pytest -q tests/firmware/test_firmware.py -k golden
 
 and review the diff before committing.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import minimal_plan
+from conftest import ROOT, minimal_plan
 from planner.errors import InputError, UsageError
 from planner.firmware.image import (
     CRC_OFFSET,
@@ -33,7 +33,7 @@ from planner.firmware.image import (
 from planner.firmware.render import chip_timer, default_template_dir, file_name, render_firmware, write_firmware
 from planner.plan_file import PlanFile
 
-HERE = Path(__file__).resolve().parent
+HERE = ROOT / "tests"
 HARNESS = HERE / "harness"
 GOLDEN = HERE / "golden" / "firmware"
 GCC = shutil.which("gcc")

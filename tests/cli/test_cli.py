@@ -3,14 +3,13 @@
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 import yaml
 
+from conftest import ROOT
 from planner.cli.plan import console_main, main
 
-ROOT = Path(__file__).resolve().parent.parent
 LAYOUTS = ROOT / "layouts"
 
 

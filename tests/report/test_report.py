@@ -16,14 +16,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_xy, hex_xy, minimal_plan
+from conftest import ROOT, grid_xy, hex_xy, minimal_plan
 from planner.cli.flash import console_main as flash_main
 from planner.cli.plan import main as plan_main
 from planner.cli.report import console_main as report_main
 from planner.cli.report import main as report_cli
 from planner.report.content import checklist, id_bill, walking_order
 
-ROOT = Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))
 
 

@@ -6,11 +6,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_xy, hex_xy
+from conftest import grid_xy, hex_xy, poisson_xy
 from planner.camera import Camera, project_discs
 from planner.verify import proof as wp
 from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area
-from test_window_set import poisson_xy
 
 ENV = wp.Envelope(ceiling_m=2.5, near_m=1.0, far_m=2.0, tilt_rad=math.radians(40), inscribed_rad=math.radians(19.44),
                   corner_rad=math.radians(30.46), disc_rad=math.radians(5.74), install_m=0.03)

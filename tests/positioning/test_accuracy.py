@@ -1,16 +1,14 @@
 """The paper's experiment in simulation (Table 3), vlp-accuracy, and the error map in plans."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import ROOT
 from planner.cli.accuracy import console_main
 from planner.cli.plan import main as plan_main
 from planner.plan_file import load_plan
 from planner.positioning.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")

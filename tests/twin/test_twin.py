@@ -6,7 +6,6 @@ locate within 10 cm; statistics are pinned with the seed.
 """
 
 import json
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -21,8 +20,6 @@ from planner.plan_file import load_plan
 from planner.twin.receiver import FrameFormat, chips_from_levels, decode_frame
 from planner.twin.render import Sensor, exposure_means, render_frame
 from planner.twin.twin import Twin, covered_poses, summary
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
