@@ -36,7 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "images, rebuilt from the plan (they must equal the ones vlp-plan wrote in OUTDIR/firmware/) and "
                     "signed with each driver's key (derived from the site key and the serial it reports); verify "
                     "and journal each.",
-                    epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input, 2 usage. Docs: "
+                    epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input (an image file that "
+                    "differs from the plan), 2 usage (or the port lost mid-batch: rerun with --resume). Docs: "
                     "docs/flashing.md, docs/protocol.md.")
     p.add_argument("plan", metavar="PLAN", nargs="?", help="plan.yaml in a vlp-plan output directory")
     p.add_argument("names", metavar="LUMINAIRE", nargs="*", help="luminaires to flash (or --all)")

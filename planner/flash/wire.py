@@ -46,7 +46,7 @@ class Status(IntEnum):
     INCOMPLETE = 5  # COMMIT before every byte arrived
     HASH = 6  # staged bytes do not hash to the announced SHA-256
     IMAGE = 7  # not a configuration image (magic, format, CRC)
-    AUTH = 8  # signature is not HMAC-SHA256 under the site key
+    AUTH = 8  # signature is not HMAC-SHA256 under the driver's own key (docs/protocol.md section 7)
     ROLLBACK = 9  # image version older than the active one (or same version, other image)
     FLASH = 10  # the flash failed to program or read back
 
