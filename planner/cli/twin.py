@@ -62,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--off-level", type=float, default=0.0, metavar="SHARE",
                    help="light of an 'off' chip as a share of 'on' (default 0)")
     g = p.add_argument_group("grading")
-    g.add_argument("--tolerance-cm", type=cli.positive_float, default=TOLERANCE_M * 100, metavar="CM",
-                   help=f"a fix this close to the truth counts as located (default {TOLERANCE_M * 100:g})")
+    g.add_argument("--max-error", type=cli.positive_float, default=TOLERANCE_M, metavar="M",
+                   help=f"a fix this close to the truth counts as located [m] (default {TOLERANCE_M:g})")
     g.add_argument("--min-success", type=float, default=0.99, metavar="SHARE",
                    help="batch: exit 3 below this success rate (default 0.99)")
     cli.common_flags(p, "print the result as JSON")
@@ -126,7 +126,7 @@ def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
     tasks = [(k, args.seed, poses.position[k], rotations[k], tuple(angles[k])) for k in range(len(poses))]
     show = sys.stderr.isatty()
     results = []
-    init = (plan, sensor, args.tolerance_cm / 100)
+    init = (plan, sensor, args.max_error)
     stream: Iterator[PoseResult]
     if args.jobs == 1:
         _init(*init)
@@ -181,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
 def _print_batch(args, s: dict, failures: list[dict]) -> None:
     from planner.report.content import length_text
 
-    tol = args.tolerance_cm
+    tol = length_text(args.max_error)
     print(f"vlp-twin: {args.plan}: {s['poses']} covered poses (seed {args.seed}); exposure {args.exposure_us:g} us, "
           f"blur {args.blur_px:g} px, read noise {args.read_noise_dn:g} DN")
     print(f"  blobs    {s['blobs_found']} of {s['leds_in_view']} LEDs in view found ({100 * s['blob_rate']:.1f} %)")
@@ -189,7 +189,7 @@ def _print_batch(args, s: dict, failures: list[dict]) -> None:
           f"{s['ids_misread']} misread")
     e = s["error_m"]
     err = f": median {length_text(e['median'])}, 90 % {length_text(e['p90'])}, max {length_text(e['max'])}" if e else ""
-    print(f"  located  {s['located']} of {s['poses']} poses within {tol:g} cm ({100 * s['success_rate']:.1f} %){err}")
+    print(f"  located  {s['located']} of {s['poses']} poses within {tol} ({100 * s['success_rate']:.1f} %){err}")
     print("  failed   " + ", ".join(f"{st} {n}" for st, n in s["failed_by_stage"].items()))
     for f in failures:
         print(f"    pose {f['pose']} {f['where']}: {f['stage']}: {f['detail']}")
@@ -205,7 +205,7 @@ def _single(plan: PlanFile, args, sensor: Sensor) -> int:
     position, rotation = _pose(args.pose, "--pose")
     twin = Twin.from_plan(plan, sensor)
     angles = tuple(float(v) for v in args.pose.split(",")[3:])
-    r, frame = run_pose(twin, position, rotation, angles, np.random.default_rng(args.seed), args.tolerance_cm / 100)
+    r, frame = run_pose(twin, position, rotation, angles, np.random.default_rng(args.seed), args.max_error)
     if args.png:
         _write_png(Path(args.png), frame.image)
     blobs: list[dict[str, Any]] = [{"centre_px": [round(b.ellipse.cx, 2), round(b.ellipse.cy, 2)] if b.ellipse else None,
@@ -222,7 +222,7 @@ def _single(plan: PlanFile, args, sensor: Sensor) -> int:
         for b in blobs:
             where = f"({b['centre_px'][0]:7.1f}, {b['centre_px'][1]:7.1f}) px" if b["centre_px"] else "(no ellipse)"
             print(f"  blob {where}  ID {b['id'] if b['id'] is not None else '-':>4}  {b['problem']}")
-        state = (f"located within {args.tolerance_cm:g} cm (error {length_text(r.error_m)})" if r.ok
+        state = (f"located within {length_text(args.max_error)} (error {length_text(r.error_m)})" if r.ok
                  else f"failed at {r.stage}: {r.detail}")
         print(f"  {r.found} of {r.seen} LEDs in view found, {r.read} IDs read, {r.misread} misread; {state}")
     return 0 if r.ok else ExitCode.CHECK_FAILED

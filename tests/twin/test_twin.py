@@ -124,7 +124,7 @@ def test_300_covered_poses_decode_and_locate(plan512):
     from planner.cli.twin import run_batch
 
     class Args:
-        poses, seed, jobs, tolerance_cm, save_failures = 300, 0, 2, 10.0, None
+        poses, seed, jobs, max_error, save_failures = 300, 0, 2, 0.10, None
 
     results = run_batch(doc, Args, twin.sensor)
     s = summary(results)
