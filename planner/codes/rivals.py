@@ -72,7 +72,7 @@ def shape_matches(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> n
     reach = tolerance_m + 1e-9
     lengths = sides(site, xyz)
     near, _ = cKDTree(shapes).query(lengths, k=1, p=np.inf, distance_upper_bound=reach + grain)
-    keep: np.ndarray = near <= reach - grain  # certainly within reach of the exact shape the rounded one stands for
+    keep = np.asarray(near <= reach - grain)  # certainly within reach of the exact shape the rounded one stands for
     unsure = np.flatnonzero(np.isfinite(near) & ~keep)  # within a grain of the border: ask the exact shapes
     if len(unsure):
         exact_near, _ = cKDTree(exact).query(lengths[unsure], k=1, p=np.inf, distance_upper_bound=reach)
