@@ -84,6 +84,7 @@ def compile_and_run(folder: Path, tmp_path: Path, source: str = "play_frame.c") 
     return subprocess.run([str(exe)], capture_output=True, check=True).stdout
 
 
+@pytest.mark.needs_gcc
 @pytest.mark.parametrize("key", sorted(FRAMES))
 def test_compiled_header_plays_the_frame(tmp_path, key):
     chips, code = FRAMES[key]
@@ -97,6 +98,7 @@ def test_compiled_header_plays_the_frame(tmp_path, key):
     compile_and_run(folder, tmp_path, "include_only.c")  # nothing used: still no warning
 
 
+@pytest.mark.needs_gcc
 @pytest.mark.parametrize("name", ['a*/b "x"??/ \\', "/* é */ end \\", "?" * 9 + "*", "名前 */ #define X"])
 def test_hostile_names_stay_inside_strings_and_comments(tmp_path, name):
     write_firmware(plan_doc(lum(name, 3, FRAMES["m4"][0])), HASH, tmp_path)
@@ -313,6 +315,7 @@ def test_packaging_lists_every_subpackage():
     assert found | {"planner.firmware_templates"} <= listed
 
 
+@pytest.mark.needs_gcc
 def test_vlp_plan_writes_headers_that_play_the_plans_frames(tmp_path):
     """End to end: the real planner's frames, through the bundled templates, compiled and played."""
     from planner.cli.plan import main as plan_main

@@ -126,6 +126,7 @@ def open_in_chromium(html: Path, screenshot: Path) -> dict:
     return {"broken": broken, "images": images, "errors": errors, "headings": headings}
 
 
+@pytest.mark.needs_chromium
 @pytest.mark.slow
 def test_html_report_renders_in_chromium_with_every_image(site, tmp_path):
     html = site / "plan" / "site-report.html"
@@ -141,6 +142,7 @@ def test_html_report_renders_in_chromium_with_every_image(site, tmp_path):
     assert text.count('class="status-not-flashed"') == 32
 
 
+@pytest.mark.needs_chromium
 def test_the_browser_check_catches_a_broken_image(site, tmp_path):
     html = site / "plan" / "site-report.html"
     bad = tmp_path / "bad.html"
@@ -160,6 +162,7 @@ def render_pdf(pdf: Path, out: Path) -> list[Path]:
     return pngs
 
 
+@pytest.mark.needs_poppler
 def test_pdf_report_renders_every_page(site, tmp_path):
     import matplotlib.image as mpimg
 
@@ -171,6 +174,7 @@ def test_pdf_report_renders_every_page(site, tmp_path):
         assert ink.mean() > 0.001, f"{png.name} is blank"
 
 
+@pytest.mark.needs_chromium
 @pytest.mark.slow
 def test_vlp_report_shows_the_flashing_status(site, tmp_path, monkeypatch, capsys):
     plan = tmp_path / "plan"
@@ -226,6 +230,7 @@ def test_replanning_refuses_to_delete_an_as_built_journal(site, tmp_path, capsys
     assert "as-built.json" in capsys.readouterr().err and (plan / "as-built.json").read_text() == "{}"
 
 
+@pytest.mark.needs_poppler
 def test_pdf_names_outside_the_builtin_font_fall_back_to_an_embedded_one(tmp_path):
     from planner.report.files import write_report
 
