@@ -110,7 +110,7 @@ def _key(site_key: bytes, serial: str) -> bytes:
     try:
         return driver_key(site_key, serial)
     except ValueError as exc:
-        raise LinkError(f"{exc}: the driver's serial cannot name its key (check its firmware)", Status.IMAGE) from None
+        raise _Refused(f"{exc}: the driver's serial cannot name its key (check its firmware)") from None
 
 
 def _holds(hello: Hello, image: bytes, key: bytes) -> bytes | None:
@@ -217,7 +217,7 @@ def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: Flas
             hello = _hello(link, address)
             held = _holds(hello, image, _key(site_key, hello.serial))
             break
-        except LinkError:
+        except (LinkError, _Refused):
             continue
     else:  # silent: what it runs is unknown (it may have taken the image before it fell silent)
         unknown = "; it did not answer afterwards, so what it runs is unknown" if wrote else ""
