@@ -8,7 +8,8 @@ URL query parameters:
 
 - ``drivers``: how many drivers share the line (default 1);
 - ``first``: the first bus address (default 1); drivers are at ``first .. first + drivers - 1``;
-- ``key``: the site key, hex (16 to 64 bytes; required);
+- ``key``: the site key, hex (16 to 64 bytes; required); each driver keeps only the key derived
+  from it and its serial (:func:`planner.flash.keys.driver_key`);
 - ``prefix``: serial number prefix (default ``SIM-``; serials are ``SIM-000001`` for address 1);
 - ``flash``: folder of flash files ``<serial>.flash``, kept between opens (default: RAM,
   lost on close);
