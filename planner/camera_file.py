@@ -7,9 +7,10 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from planner._files import load_yaml
+from planner._schema import validation_message
 from planner.camera import Camera
 from planner.errors import InputError
-from planner.plan_file import CameraFields, validation_message
+from planner.plan_file import CameraFields
 
 
 def read_camera(path: str | Path) -> Camera:

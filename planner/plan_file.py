@@ -19,9 +19,9 @@ import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
 
 from planner._files import load_yaml
+from planner._schema import Coordinate, Count, Finite, Positive, Text, validation_message
 from planner.defaults import (
     LINE_CODE_NAMES,
-    MAX_EXTENT_M,
     MAX_FOCAL_PX,
     MAX_HEIGHT_M,
     MAX_IMAGE_PX,
@@ -36,12 +36,6 @@ if TYPE_CHECKING:
     from planner.camera import Camera
 
 
-# Strict scalars: no '5' for 5 and no true for 1 (an int is still a float); lists may stand for tuples.
-Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
-Coordinate = Annotated[float, Strict(), Field(allow_inf_nan=False, ge=-MAX_EXTENT_M, le=MAX_EXTENT_M)]
-Positive = Annotated[float, Strict(), Field(allow_inf_nan=False, gt=0)]
-Count = Annotated[int, Strict(), Field(ge=0)]
-Text = Annotated[str, Strict()]
 
 
 class _Section(BaseModel):
@@ -240,33 +234,6 @@ class PlanFile(_Section):
     def document(self) -> dict:
         """The plan as a plain mapping (what templates see), with the keys this version does not read."""
         return self.model_dump(mode="python")
-
-
-def _where(loc: tuple) -> str:
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out
-
-
-def validation_message(exc: ValidationError) -> str:
-    """The first problem of a pydantic error, as ``field.path: what``, and how many more there are."""
-    errors = exc.errors(include_url=False)
-    first = errors[0]
-    what = first["msg"].removeprefix("Value error, ")
-    if first["type"] in ("dict_type", "model_type", "model_attributes_type"):
-        what = "must be a mapping"
-    elif first["type"] == "missing":
-        what = "is missing"
-    elif first["type"] == "extra_forbidden":
-        what = "unknown field"
-    what = what.replace("Input should be", "must be").replace("String should", "must")
-    if first["type"] not in ("missing", "value_error", "extra_forbidden") and "input" in first:
-        got = repr(first["input"])
-        what += f" (got {got if len(got) <= 40 else got[:37] + '...'})"
-    where = _where(tuple(p for p in first["loc"] if not str(p).startswith("function-")))
-    more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-    return (f"{where}: " if where else "") + what + more
 
 
 def plan_from_document(doc: object, where: str) -> PlanFile:

@@ -1,20 +1,67 @@
 """Read YAML and CSV layout files into a :class:`~planner.layout.model.Layout`.
 
-Both formats are documented in ``docs/layout-files.md``. Coordinates are in
-``unit`` (default metres) and converted to metres here, once.
+Both formats are documented in ``docs/layout-files.md``. Each file is checked once by the
+pydantic models below (strict types for YAML, numbers parsed from text for CSV), so a bad
+field gets one line naming the file, the field and what is allowed. Coordinates are in
+``unit`` (default metres) and converted to metres here, once; ranges in metres are
+checked afterwards by :func:`~planner.layout.model.check_layout`.
 """
 
 from __future__ import annotations
 
 import csv
 from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
 
 from planner._files import load_yaml, read_text
-from planner.defaults import UNIT_TO_M
+from planner._schema import validation_message
+from planner.defaults import MAX_LUMINAIRES, UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
-_FIELDS = {"name", "x", "y", "z", "radius"}
+# Lengths in the file's unit. YAML is validated strictly (no '5' for 5, no true for 1);
+# CSV cells are text, so there the same fields parse numbers from it.
+Length = Annotated[float, Field(allow_inf_nan=False)]
+PositiveLength = Annotated[float, Field(allow_inf_nan=False, gt=0)]
+
+
+Point = Annotated[list[Length], Field(min_length=2, max_length=2)]  # [x, y]
+
+
+def _polygon(points: list[list[float]]) -> list[list[float]]:
+    if len(points) < 3:
+        raise ValueError(f"needs at least 3 points, got {len(points)}")
+    return points
+
+
+class LuminaireRow(BaseModel):
+    """One luminaire of a layout file: ``x``, ``y`` and optionally ``z``, ``radius``, ``name``; ``id`` is ignored."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: str | None = None
+    x: Length
+    y: Length
+    z: PositiveLength | None = None
+    radius: PositiveLength | None = None
+    id: Any = None  # IDs are the planner's to give
+
+
+class LayoutFile(BaseModel):
+    """A YAML layout: ``unit``, default ``height``/``radius``, ``outline`` and ``luminaires``; other keys ignored."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    unit: str = "m"
+    height: PositiveLength | None = None
+    radius: PositiveLength | None = None
+    outline: Annotated[list[Point], AfterValidator(_polygon)] | None = None
+    luminaires: Annotated[list[LuminaireRow], Field(max_length=MAX_LUMINAIRES)] | None = None
+
+
+ALLOWED = ", ".join(f for f in LuminaireRow.model_fields if f != "id")
 
 
 def _unit_scale(unit: str, where: str) -> float:
@@ -24,41 +71,29 @@ def _unit_scale(unit: str, where: str) -> float:
         raise InputError(f"{where}: unknown unit {unit!r}; use one of {', '.join(UNIT_TO_M)}") from None
 
 
-def _number(value, where: str, field: str) -> float:
+def _checked(model: type[BaseModel], doc: object, where: str, *, strict: bool) -> Any:
     try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: field {field!r} must be a number, got {value!r}") from None
-    if out != out or out in (float("inf"), float("-inf")):
-        raise InputError(f"{where}: field {field!r} must be finite, got {value!r}")
-    return out
+        return model.model_validate(doc, strict=strict)
+    except ValidationError as exc:
+        known = f"; allowed: {ALLOWED}" if exc.errors()[0]["type"] == "extra_forbidden" else ""
+        raise InputError(f"{where}: {validation_message(exc)}{known}") from None
+    except RecursionError:
+        raise InputError(f"{where}: nested too deeply to be a layout") from None
 
 
-def _luminaire(row: dict, k: int, scale: float, where: str, defaults: dict, source: dict) -> Luminaire:
-    unknown = set(row) - _FIELDS - {"id"}
-    if unknown:
-        raise InputError(f"{where}: unknown field {sorted(unknown)[0]!r}; allowed: {', '.join(sorted(_FIELDS))}")
-    for key in ("x", "y"):
-        if row.get(key) in (None, ""):
-            raise InputError(f"{where}: missing {key!r}; every luminaire needs x and y")
-    z = row.get("z")
-    z_m = _number(z, where, "z") * scale if z not in (None, "") else defaults["z"]
-    r = row.get("radius")
-    r_m = _number(r, where, "radius") * scale if r not in (None, "") else defaults["radius"]
-    name = str(row.get("name") or f"L{k + 1:04d}").strip()
-    return Luminaire(
-        name, _number(row["x"], where, "x") * scale, _number(row["y"], where, "y") * scale, z_m, r_m, source
-    )
+def _luminaire(row: LuminaireRow, k: int, scale: float, defaults: dict, source: dict) -> Luminaire:
+    return Luminaire((row.name or "").strip() or f"L{k + 1:04d}", row.x * scale, row.y * scale,
+                     row.z * scale if row.z is not None else defaults["z"],
+                     row.radius * scale if row.radius is not None else defaults["radius"], source)
 
 
-def _defaults(mount_height_m: float | None, radius_m: float | None, doc: dict, scale: float, where: str):
-    z = doc.get("height")
-    r = doc.get("radius")
+def _defaults(mount_height_m: float | None, radius_m: float | None, height: float | None, radius: float | None,
+              scale: float) -> dict:
     return {
         "z": mount_height_m if mount_height_m is not None
-        else _number(z, where, "height") * scale if z is not None else DEFAULT_MOUNT_HEIGHT_M,
+        else height * scale if height is not None else DEFAULT_MOUNT_HEIGHT_M,
         "radius": radius_m if radius_m is not None
-        else _number(r, where, "radius") * scale if r is not None else DEFAULT_RADIUS_M,
+        else radius * scale if radius is not None else DEFAULT_RADIUS_M,
     }
 
 
@@ -71,30 +106,17 @@ def read_yaml(path: str | Path, *, units: str | None = None, mount_height_m: flo
     doc = load_yaml(path)
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a mapping with 'luminaires' or 'outline' at the top level")
-    unit = units or str(doc.get("unit", "m"))
+    layout: LayoutFile = _checked(LayoutFile, doc, str(path), strict=True)
+    unit = units or layout.unit
     scale = _unit_scale(unit, str(path))
-    defaults = _defaults(mount_height_m, radius_m, doc, scale, str(path))
-    rows = doc.get("luminaires") or []
-    if not isinstance(rows, list):
-        raise InputError(f"{path}: 'luminaires' must be a list of mappings")
-    lums = []
-    for k, row in enumerate(rows):
-        where = f"{path}: luminaires[{k}]"
-        if not isinstance(row, dict):
-            raise InputError(f"{where}: expected a mapping with x and y")
-        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "index": k}))
-    outline = None
-    if doc.get("outline") is not None:
-        try:
-            outline = tuple((float(x) * scale, float(y) * scale) for x, y in doc["outline"])
-        except (TypeError, ValueError):
-            raise InputError(f"{path}: 'outline' must be a list of [x, y] points") from None
-        if len(outline) < 3:
-            raise InputError(f"{path}: 'outline' needs at least 3 points")
+    defaults = _defaults(mount_height_m, radius_m, layout.height, layout.radius, scale)
+    lums = tuple(_luminaire(row, k, scale, defaults, {"file": path.name, "index": k})
+                 for k, row in enumerate(layout.luminaires or []))
+    outline = None if layout.outline is None else tuple((x * scale, y * scale) for x, y in layout.outline)
     reason = "given with --units" if units else ("stated in the file" if "unit" in doc else "the default")
-    return Layout(tuple(lums), outline, str(path), unit, reason,
-                  fill_height_m=defaults["z"] if doc.get("height") is not None else None,
-                  fill_radius_m=defaults["radius"] if doc.get("radius") is not None else None)
+    return Layout(lums, outline, str(path), unit, reason,
+                  fill_height_m=defaults["z"] if layout.height is not None else None,
+                  fill_radius_m=defaults["radius"] if layout.radius is not None else None)
 
 
 def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: float | None = None,
@@ -121,9 +143,12 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     header = [h.strip().lower() for h in reader.fieldnames or []]
     if "x" not in header or "y" not in header:
         raise InputError(f"{path}: line {numbers[0]}: header must name columns x and y (found {', '.join(header)})")
+    if len(lines) - 1 > MAX_LUMINAIRES:
+        raise InputError(f"{path}: {len(lines) - 1:,} rows, more than the {MAX_LUMINAIRES:,} luminaires one plan "
+                         "holds; split the site into several plans")
     unit = units or unit_in_file or "m"
     scale = _unit_scale(unit, str(path))
-    defaults = _defaults(mount_height_m, radius_m, {}, scale, str(path))
+    defaults = _defaults(mount_height_m, radius_m, None, None, scale)
     lums = []
     for k, raw in enumerate(reader):
         number = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
@@ -131,7 +156,8 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
         if None in raw:  # DictReader's key for fields beyond the header: a stray comma, e.g. "1,5" for 1.5
             raise InputError(f"{where}: more fields than the header names ({', '.join(header)}); a decimal comma? "
                              "write 1.5, not 1,5")
-        row = {h.strip().lower(): (v.strip() if isinstance(v, str) else v) for h, v in raw.items() if h}
-        lums.append(_luminaire(row, k, scale, where, defaults, {"file": path.name, "line": number}))
+        cells = {h.strip().lower(): v.strip() for h, v in raw.items() if h and isinstance(v, str)}
+        row = _checked(LuminaireRow, {h: v for h, v in cells.items() if v != ""}, where, strict=False)
+        lums.append(_luminaire(row, k, scale, defaults, {"file": path.name, "line": number}))
     reason = "given with --units" if units else ("stated in the file" if unit_in_file else "the default")
     return Layout(tuple(lums), None, str(path), unit, reason)
