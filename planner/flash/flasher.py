@@ -113,15 +113,14 @@ def _key(site_key: bytes, serial: str) -> bytes:
         raise _Refused(f"{exc}: the driver's serial cannot name its key (check its firmware)") from None
 
 
-def _holds(hello: Hello, image: bytes, key: bytes) -> bytes | None:
-    """The signed image of the plan the driver runs (at its reported version), or None if it runs another."""
+def _runs_plan(hello: Hello, image: bytes, key: bytes) -> bool:
+    """True if the driver runs the plan's ``image``, signed with ``key``, at the version it reports."""
     if not hello.active_slot or not 0 <= hello.active_version <= MAX_IMAGE_VERSION:
-        return None
-    signed = sign_image(at_version(image, hello.active_version), key)
-    return signed if hashlib.sha256(signed).digest() == hello.active_sha256 else None
+        return False
+    return hashlib.sha256(sign_image(at_version(image, hello.active_version), key)).digest() == hello.active_sha256
 
 
-def choose_version(hello: Hello, versions: Versions) -> int:
+def _choose_version(hello: Hello, versions: Versions) -> int:
     """The version to sign for a driver that runs another image; :class:`_Refused` says what to do."""
     running = hello.active_version if hello.active_slot else 0
     if versions.explicit is not None:
@@ -174,15 +173,14 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
             key = _key(site_key, hello.serial)
             result = replace(result, serial=hello.serial, active_version=hello.active_version,
                              active_sha256=hello.active_sha256.hex())
-            held = _holds(hello, image, key)
-            if held is not None:
+            if _runs_plan(hello, image, key):
                 status = "verified" if verify_only else "flashed" if wrote else "current"
                 return replace(result, status=status, image_sha256=result.active_sha256, verified=True, message="",
                                image_version=hello.active_version, seconds=time.perf_counter() - started)
             if verify_only:
                 result = replace(result, message="the driver holds another image")
                 break
-            version = choose_version(hello, versions)
+            version = _choose_version(hello, versions)
             signed = sign_image(at_version(image, version), key)
             sha = hashlib.sha256(signed).digest()
             result = replace(result, image_sha256=sha.hex(), image_version=version)
@@ -215,7 +213,7 @@ def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: Flas
     for _ in range(ASK_AFTER_FAILURE):
         try:
             hello = _hello(link, address)
-            held = _holds(hello, image, _key(site_key, hello.serial))
+            held = _runs_plan(hello, image, _key(site_key, hello.serial))
             break
         except (LinkError, _Refused):
             continue
@@ -225,7 +223,7 @@ def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: Flas
                        seconds=time.perf_counter() - started)
     result = replace(result, serial=hello.serial, active_version=hello.active_version,
                      active_sha256=hello.active_sha256.hex(), seconds=time.perf_counter() - started)
-    if held is not None:
+    if held:
         status = "verified" if verify_only else "flashed" if wrote else "current"
         return replace(result, status=status, verified=True, message="", image_sha256=result.active_sha256,
                        image_version=hello.active_version)
