@@ -4,6 +4,11 @@ Prints the terminal's path as the first line of stdout, then serves until SIGTER
 SIGINT (exit 0). Each driver's flash is the file ``<serial>.flash`` in ``--flash-dir``
 (kept; default a temporary folder, reported on stderr and removed at exit). The host
 may close and reopen the terminal at will.
+
+``--firmware avr`` runs the reference firmware (firmware_templates/driver/) on emulated
+ATmega328P MCUs instead of the Python model (planner/flash/avr/): one shared line, each
+driver's EEPROM the file ``<serial>.eeprom`` in ``--eeprom-dir``, its LED pin traced to
+``--trace DIR/<address>.vcd``.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
-from planner.errors import PlannerError
+from planner.errors import PlannerError, UsageError
 
 if TYPE_CHECKING:  # the simulator loads when the command runs, not when it parses (--help at once)
     from planner.flash.sim.bus import SimBus
@@ -34,15 +39,24 @@ PROG = "vlp-driver-sim"
 
 def _parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog=PROG, description="Simulated luminaire drivers (docs/protocol.md) on a pseudo-terminal.")
+    p.add_argument("--firmware", choices=("sim", "avr"), default="sim",
+                   help="sim: the Python driver model (default); avr: the reference C firmware on emulated "
+                        "ATmega328P MCUs (needs gcc-avr, avr-libc, simavr, libsimavr-dev)")
     p.add_argument("--drivers", type=int, default=1, help="drivers sharing the line (default 1)")
     p.add_argument("--first-address", type=int, default=1, help="bus address of the first driver (default 1)")
     p.add_argument("--key-file", type=Path, required=True, help="site key: a file holding it in hex or raw (16-64 bytes)")
     p.add_argument("--faults", default="", help="fault spec, e.g. corrupt=0.001,reset=0.01,power=0.01,stall=0.01,seed=3")
     p.add_argument("--flash-dir", type=Path, help="folder of the drivers' flash files (default: a temporary folder)")
-    p.add_argument("--serial-prefix", default="SIM-", help="serial number prefix (default SIM-)")
-    p.add_argument("--slot-size", type=int, default=4096, help="bytes per slot (default 4096)")
-    p.add_argument("--max-block", type=int, default=256, help="most data bytes per WRITE (default 256)")
-    p.add_argument("--block-write-us", type=int, default=2000, help="reported block programming time [us]")
+    p.add_argument("--serial-prefix", help="serial number prefix (default SIM-, AVR- with --firmware avr)")
+    p.add_argument("--slot-size", type=int, help="bytes per slot (default 4096)")
+    p.add_argument("--max-block", type=int, help="most data bytes per WRITE (default 256)")
+    p.add_argument("--block-write-us", type=int, help="reported block programming time [us] (default 2000)")
+    p.add_argument("--eeprom-dir", type=Path, help="with --firmware avr: folder of the drivers' EEPROM images "
+                                                   "(default: a temporary folder)")
+    p.add_argument("--trace", type=Path, metavar="DIR", help="with --firmware avr: write each driver's LED pin "
+                                                              "to DIR/<address>.vcd")
+    p.add_argument("--build-dir", type=Path, help="with --firmware avr: where the firmware and emulator are built "
+                                                  "(default ~/.cache/vlp-plan/avr)")
     cli.common_flags(p, "print the port, the drivers' addresses and the flash folder as one JSON line on stdout, "
                         "instead of the port alone")
     return p
@@ -84,6 +98,16 @@ def main(argv: list[str] | None = None) -> int:
     """Run the simulator; raises :class:`PlannerError` on bad arguments."""
     args = _parser().parse_args(argv)
     key = cli.site_key(args.key_file, env=False)
+    sim_only = {"--faults": args.faults, "--flash-dir": args.flash_dir, "--slot-size": args.slot_size,
+                "--max-block": args.max_block, "--block-write-us": args.block_write_us}
+    avr_only = {"--eeprom-dir": args.eeprom_dir, "--trace": args.trace, "--build-dir": args.build_dir}
+    wrong = [flag for flag, value in (sim_only if args.firmware == "avr" else avr_only).items()
+             if value not in (None, "")]
+    if wrong:
+        raise UsageError(f"{', '.join(wrong)} cannot be used with --firmware {args.firmware} "
+                         f"(see {PROG} --help)")
+    if args.firmware == "avr":
+        return _main_avr(args, key)
     from planner.flash.sim.bus import Faults, make_bus
 
     faults = Faults.parse(args.faults)
@@ -92,9 +116,11 @@ def main(argv: list[str] | None = None) -> int:
     bus = None
     master = slave = wake_r = wake_w = -1
     try:
-        bus = make_bus(args.drivers, key, first_address=args.first_address, serial_prefix=args.serial_prefix,
-                       flash_dir=flash_dir, slot_size=args.slot_size, max_block=args.max_block,
-                       block_write_us=args.block_write_us, faults=faults)
+        bus = make_bus(args.drivers, key, first_address=args.first_address,
+                       serial_prefix="SIM-" if args.serial_prefix is None else args.serial_prefix,
+                       flash_dir=flash_dir, slot_size=4096 if args.slot_size is None else args.slot_size,
+                       max_block=256 if args.max_block is None else args.max_block,
+                       block_write_us=2000 if args.block_write_us is None else args.block_write_us, faults=faults)
         master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no line editing: bytes pass unchanged
         os.set_blocking(master, False)
@@ -121,6 +147,47 @@ def main(argv: list[str] | None = None) -> int:
             bus.close()
         if made_dir:
             shutil.rmtree(flash_dir, ignore_errors=True)
+    return 0
+
+
+def _main_avr(args: argparse.Namespace, key: bytes) -> int:
+    """``--firmware avr``: emulated MCUs on one shared line, served until SIGTERM or SIGINT."""
+    from planner.flash.avr.runner import AvrBus
+
+    made_dir = args.eeprom_dir is None
+    eeprom_dir = Path(tempfile.mkdtemp(prefix="vlp-driver-avr-")) if made_dir else args.eeprom_dir
+    bus = None
+    wake_r = wake_w = -1
+    try:
+        bus = AvrBus(args.drivers, key, eeprom_dir, first_address=args.first_address,
+                     serial_prefix="AVR-" if args.serial_prefix is None else args.serial_prefix,
+                     trace_dir=args.trace, build_dir=args.build_dir)
+        wake_r, wake_w = os.pipe()
+        os.set_blocking(wake_w, False)
+        signal.set_wakeup_fd(wake_w)
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(signum, lambda *_: None)
+        last = args.first_address + args.drivers - 1
+        if args.json:
+            print(json.dumps({"port": bus.port, "drivers": args.drivers, "addresses": [args.first_address, last],
+                              "eeprom_dir": str(eeprom_dir), "trace_dir": str(args.trace) if args.trace else None,
+                              "firmware": str(bus.firmware)}), flush=True)
+        else:
+            print(bus.port, flush=True)
+        print(f"{PROG}: {args.drivers} emulated ATmega328P driver(s) at addresses {args.first_address}..{last} "
+              f"on one line, EEPROM in {eeprom_dir}{' (temporary)' if made_dir else ''}"
+              f"{f', LED traces in {args.trace}' if args.trace else ''}; line rate 250000 bit/s",
+              file=sys.stderr, flush=True)
+        bus.serve(wake_r)
+    finally:
+        signal.set_wakeup_fd(-1)
+        for fd in (wake_r, wake_w):
+            if fd >= 0:
+                os.close(fd)
+        if bus is not None:
+            bus.close()
+        if made_dir:
+            shutil.rmtree(eeprom_dir, ignore_errors=True)
     return 0
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 from planner.errors import UsageError
 from planner.flash.avr.build import EEPROM_BYTES, build_firmware, build_harness
 from planner.flash.keys import driver_key
+from planner.flash.wire import Deframer, WireError, decode
 
 PROVISION_MAGIC = b"VLPK"
 PROVISION = struct.Struct("<4sHH16s32s")  # magic, bus address, 0, serial (NUL-padded), driver key; then CRC-32
@@ -92,6 +93,8 @@ class AvrBus:
             provision(path, address, serial, driver_key(site_key, serial))
             self.drivers.append(EmulatedDriver(address, serial, path,
                                                trace_dir / f"{address}.vcd" if trace_dir is not None else None))
+        self.last_request: tuple[int, int] | None = None  # (address, command) the host last sent, whole
+        self._host_frames = Deframer()
         self._lock = threading.Lock()
         self._wake_r, self._wake_w = os.pipe()
         self._stopping = False
@@ -146,10 +149,13 @@ class AvrBus:
         """Move bytes between the terminal and the drivers until :meth:`stop` (or ``stop_fd`` is readable)."""
         while True:
             with self._lock:
-                outs = {d.process.stdout.fileno(): d for d in self.drivers
+                outs = {d.process.stdout.fileno(): (d, d.process) for d in self.drivers
                         if d.process is not None and d.process.stdout is not None and not d.process.stdout.closed}
             watch = [self.master, self._wake_r, *outs] + ([stop_fd] if stop_fd is not None else [])
-            readable, _, _ = select.select(watch, [], [])
+            try:
+                readable, _, _ = select.select(watch, [], [])
+            except (OSError, ValueError):  # a pipe closed by a power cut meanwhile: look again
+                continue
             if stop_fd is not None and stop_fd in readable:
                 return
             if self._wake_r in readable:
@@ -161,7 +167,7 @@ class AvrBus:
                 self._to_drivers()
             for fd in readable:
                 if fd in outs:
-                    self._from_driver(fd, outs[fd])
+                    self._from_driver(fd, *outs[fd])
 
     def _to_drivers(self) -> None:
         try:
@@ -169,6 +175,12 @@ class AvrBus:
         except OSError:  # nobody has the terminal open
             time.sleep(0.05)
             return
+        for frame in self._host_frames.feed(data):  # only to tell tests whom the host is talking to
+            try:
+                packet = decode(frame)
+            except WireError:
+                continue
+            self.last_request = (packet.address, packet.command)
         with self._lock:
             for d in self.drivers:
                 if d.process is not None and d.process.stdin is not None:
@@ -177,17 +189,17 @@ class AvrBus:
                     except (OSError, ValueError):  # the driver is off: the bytes are lost, as on a real line
                         pass
 
-    def _from_driver(self, fd: int, driver: EmulatedDriver) -> None:
-        try:
-            data = os.read(fd, 4096)
-        except OSError:
-            return
-        if not data:  # the process ended on its own
-            with self._lock:
-                if driver.process is not None and driver.process.stdout is not None \
-                        and not driver.process.stdout.closed and driver.process.stdout.fileno() == fd:
-                    self._halt(driver, kill=True)
-            return
+    def _from_driver(self, fd: int, driver: EmulatedDriver, process: subprocess.Popen) -> None:
+        with self._lock:
+            if driver.process is not process:  # power-cut since select: the fd may be the new process's
+                return
+            try:
+                data = os.read(fd, 4096)
+            except OSError:
+                return
+            if not data:  # the process ended on its own
+                self._halt(driver, kill=True)
+                return
         try:
             os.write(self.master, data)
         except OSError:  # the terminal's buffer is full or closed: lost, as on an unread line

@@ -1,0 +1,349 @@
+"""The reference driver firmware (firmware_templates/driver/) built with avr-gcc and run on simavr.
+
+Flashed by the installed ``vlp-flash`` over a pseudo-terminal, the LED traces decoded to the
+planned IDs; power cuts at seeded random moments; images for another driver, tampered, older;
+corrupted bytes on the line; and the firmware's own SHA-256/HMAC/CRC/COBS against Python's.
+Needs the Debian packages gcc-avr avr-libc simavr libsimavr-dev (.ci/run installs them).
+"""
+
+import hashlib
+import hmac
+import json
+import random
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import pytest
+import serial
+from cobs import cobs
+
+from planner.errors import InputError
+from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image
+from planner.flash.avr.build import (
+    AVR_FLAGS,
+    EEPROM_BYTES,
+    FLASH_BYTES,
+    RAM_BYTES,
+    build_firmware,
+    build_harness,
+    build_host_test,
+    memory_use,
+)
+from planner.flash.avr.runner import AvrBus
+from planner.flash.avr.trace import read_light
+from planner.flash.keys import driver_key
+from planner.flash.link import Link, LinkError
+from planner.flash.wire import (
+    BEGIN_REPLY,
+    BEGIN_REQUEST,
+    VERIFY_REPLY,
+    WRITE_HEAD,
+    WRITE_REPLY,
+    Command,
+    Deframer,
+    Hello,
+    Packet,
+    Status,
+    WireError,
+    decode,
+    encode,
+)
+from planner.plan_file import load_plan
+from planner.twin.receiver import FrameFormat
+
+pytestmark = pytest.mark.needs_avr
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent  # the installed console scripts
+KEY = bytes(range(32))
+BAUD = 250_000  # the firmware's line rate (exact at 16 MHz)
+NAMES = ["R01C01", "R01C02", "R01C03", "R01C04", "R01C05", "R01C06", "R01C07", "R01C08"]
+
+
+@pytest.fixture(scope="module")
+def plans(tmp_path_factory) -> Path:
+    """grid-32 planned twice: ``a`` and its re-plan ``b`` (another mounting height); read only."""
+    from planner.cli.plan import main as plan_main
+
+    base = tmp_path_factory.mktemp("avr-plans")
+    for name, extra in (("a", []), ("b", ["--height", "2.4"])):
+        plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / name), "--no-map", "--no-report",
+                   "--json", *extra])
+    (base / "key").write_text(KEY.hex())
+    (base / "map.csv").write_text("".join(f"{name},{k + 1}\n" for k, name in enumerate(NAMES)))
+    return base
+
+
+def _config(plans: Path, plan: str, name: str) -> dict:
+    return json.loads((plans / plan / "firmware" / name / "vlp_config.json").read_text())
+
+
+def _flash(plans: Path, plan: str, port: str, journal: Path, names: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([str(BIN / "vlp-flash"), str(plans / plan / "plan.yaml"), *names, "--bus", "--bus-map",
+                             str(plans / "map.csv"), "--port", port, "--key-file", str(plans / "key"), "--baud",
+                             str(BAUD), "--journal", str(journal), "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _plays(trace: Path, choices: list[tuple[FrameFormat, dict]]) -> dict:
+    """The configuration (of ``choices``: frame format and vlp_config.json) the trace plays at its end, whole:
+    its ID, every chip of its frame, and its chip rate within 1 ppm of the header's prediction."""
+    for frame_format, config in choices:
+        try:
+            reading = read_light(trace, frame_format, last_s=0.25)
+        except InputError:
+            continue
+        frame = config["chips"] * (len(reading.chips) // len(config["chips"]) + 2)
+        if reading.id == config["id"] and reading.chips in frame:
+            predicted_ppm = config["chip_rate_error_ppm"]
+            assert abs(reading.rate_error_ppm(config["chip_rate_hz"]) - predicted_ppm) < 1.0, (trace, reading)
+            return config
+    raise AssertionError(f"{trace}: plays none of {[c for _, c in choices]} whole")
+
+
+def _signed(image: bytes, key: bytes) -> bytes:
+    """What a host that holds ``key`` sends: the signature field set, the CRC redone."""
+    body = image[:SIGNATURE_OFFSET] + hmac.new(key, image[:SIGNATURE_OFFSET], hashlib.sha256).digest()
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+def _image(config: dict, version: int, luminaire_id: int | None = None) -> bytes:
+    """A configuration image of ``config`` (a vlp_config.json), unsigned."""
+    return config_image(config["luminaire"], luminaire_id or config["id"], config["chips"], config["chip_rate_hz"],
+                        config["plan_hash"], image_version=version)
+
+
+def _send(link: Link, address: int, image: bytes) -> Packet:
+    """BEGIN (restart), WRITE in 128-byte blocks, VERIFY, COMMIT; the COMMIT's answer or LinkError."""
+    sha = hashlib.sha256(image).digest()
+    version = struct.unpack_from("<I", image, 120)[0]
+    link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 1), driver_s=0.5)
+    for offset in range(0, len(image), 128):
+        link.request(address, Command.WRITE, WRITE_HEAD.pack(offset) + image[offset:offset + 128], driver_s=0.5)
+    staged, digest = VERIFY_REPLY.unpack(link.request(address, Command.VERIFY, driver_s=0.1).payload)
+    assert (staged, digest) == (len(image), sha)
+    return link.request(address, Command.COMMIT, sha, driver_s=1.0)
+
+
+def _hello(link: Link, address: int) -> Hello:
+    return Hello.unpack(link.request(address, Command.HELLO).payload)
+
+
+# The firmware's C, compiled for this machine, against Python.
+@pytest.fixture(scope="module")
+def host_test() -> Path:
+    return build_host_test()
+
+
+def _run(binary: Path, *args: str) -> str:
+    return subprocess.run([str(binary), *args], capture_output=True, text=True, check=True).stdout.strip()
+
+
+def test_sha256_and_hmac_match_hashlib(host_test):
+    rng = random.Random(1)
+    for n in [0, 1, 3, 55, 56, 63, 64, 65, 119, 120, 127, 128, 132, 168, 200, 1000]:
+        data = rng.randbytes(n)
+        assert _run(host_test, "sha", data.hex()) == hashlib.sha256(data).hexdigest(), n
+        for key_bytes in (1, 16, 32, 64):
+            key = rng.randbytes(key_bytes)
+            assert _run(host_test, "hmac", key.hex(), data.hex()) == hmac.new(key, data, hashlib.sha256).hexdigest()
+
+
+def test_crc32_and_cobs_match_python(host_test):
+    rng = random.Random(2)
+    for n in [1, 2, 11, 100, 253, 254, 255, 600]:
+        data = rng.randbytes(n)
+        assert int(_run(host_test, "crc", data.hex()), 16) == zlib.crc32(data)
+        assert _run(host_test, "cobs", cobs.encode(data).hex()) == data.hex()
+        damaged = bytearray(cobs.encode(data))
+        damaged[rng.randrange(len(damaged))] = rng.randrange(1, 256)
+        try:
+            expected = cobs.decode(bytes(damaged)).hex()
+        except cobs.DecodeError:
+            expected = "error"
+        assert _run(host_test, "cobs", damaged.hex()) == expected
+    assert _run(host_test, "cobs", "0200") == "error"  # a zero inside a frame
+
+
+# Item 1: the firmware builds with warnings as errors and fits the chip.
+def test_firmware_builds_with_werror_and_fits(tmp_path):
+    elf = build_firmware(tmp_path)  # a fresh build, not the cache
+    use = memory_use(elf)
+    assert 0 < use.flash_bytes <= FLASH_BYTES // 2 and 0 < use.ram_bytes <= RAM_BYTES // 2, use
+    bad = tmp_path / "warn.c"
+    bad.write_text("int main(void) { int unused; return 0; }\n")
+    proc = subprocess.run(["avr-gcc", *AVR_FLAGS, str(bad), "-o", str(tmp_path / "warn.elf")], capture_output=True,
+                          text=True)
+    assert proc.returncode != 0 and "unused" in proc.stderr  # a warning stops the build
+    assert build_harness().is_file()
+
+
+# Done-when (b): vlp-driver-sim --firmware avr, flashed by vlp-flash, every LED read back.
+@pytest.mark.slow
+def test_flash_four_emulated_drivers_and_read_their_light(plans, tmp_path):
+    names = NAMES[:4]
+    sim = subprocess.Popen([str(BIN / "vlp-driver-sim"), "--firmware", "avr", "--drivers", "4", "--key-file",
+                            str(plans / "key"), "--trace", str(tmp_path / "trace"), "--eeprom-dir",
+                            str(tmp_path / "eeprom")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert sim.stdout is not None
+        port = sim.stdout.readline().strip()
+        assert port.startswith("/dev/"), port
+        run = _flash(plans, "a", port, tmp_path / "as-built.json", names)
+        out, err = run.communicate(timeout=60)
+        assert run.returncode == 0, err
+        report = json.loads(out)
+        assert [d["status"] for d in report["drivers"]] == ["flashed"] * 4
+        assert [d["serial"] for d in report["drivers"]] == [f"AVR-{a:06d}" for a in range(1, 5)]
+        time.sleep(0.5)  # half a second of light after the last commit
+    finally:
+        sim.send_signal(signal.SIGTERM)
+        sim.wait(timeout=10)
+    assert sim.returncode == 0
+    frame_format = FrameFormat.from_plan(load_plan(plans / "a" / "plan.yaml"))
+    for address, name in enumerate(names, start=1):
+        config = _config(plans, "a", name)
+        assert _plays(tmp_path / "trace" / f"{address}.vcd", [(frame_format, config)]) == config
+    assert sorted(p.stat().st_size for p in (tmp_path / "eeprom").iterdir()) == [EEPROM_BYTES] * 4
+
+
+# Done-when (c): power cuts at 20 seeded random moments while vlp-flash flashes.
+@pytest.mark.slow
+def test_power_cuts_leave_old_or_new_and_the_journal_agrees(plans, tmp_path):
+    rng = random.Random(20)
+    n = len(NAMES)
+    formats = {p: FrameFormat.from_plan(load_plan(plans / p / "plan.yaml")) for p in "ab"}
+    choices = {name: [(formats[p], _config(plans, p, name)) for p in "ab"] for name in NAMES}
+    with AvrBus(n, KEY, tmp_path / "eeprom", trace_dir=tmp_path / "trace").start() as bus:
+        run = _flash(plans, "a", bus.port, tmp_path / "journal-0.json", NAMES)
+        assert run.wait(timeout=60) == 0
+        cuts, rounds, interrupted = 0, 0, []
+        while cuts < 20:
+            rounds += 1
+            plan = "b" if rounds % 2 else "a"  # b, a, b, ...: each round a newer image version
+            journal = tmp_path / f"journal-{rounds}.json"
+            run = _flash(plans, plan, bus.port, journal, NAMES)
+            while run.poll() is None and cuts < 20:
+                time.sleep(rng.uniform(0.02, 0.4))
+                if run.poll() is None and bus.last_request is not None:
+                    address, command = bus.last_request  # the driver being flashed, in the midst of it
+                    bus.power_cut(address if address != 0xFFFF else rng.randrange(1, n + 1))
+                    interrupted.append(Command(command).name)
+                    cuts += 1
+            run.communicate(timeout=120)
+            assert run.returncode in (0, 3)  # all verified, or some failed (and named)
+            time.sleep(0.5)
+            entries = json.loads(journal.read_text())["luminaires"]
+            with serial.Serial(bus.port, BAUD, timeout=0.05) as port:
+                link = Link(port, BAUD)
+                for address, name in enumerate(NAMES, start=1):
+                    hello = _hello(link, address)
+                    trace = bus.driver(address).trace_path
+                    assert trace is not None
+                    _plays(trace, choices[name])  # old or new, whole
+                    assert hello.active_version >= 1
+                    entry = entries[name]
+                    assert entry["driver_serial"] == hello.serial
+                    assert entry["active_sha256"] == hello.active_sha256.hex(), (name, entry)
+                    assert entry["active_version"] == hello.active_version, (name, entry)
+                    assert entry["verified"] == (entry["image_sha256"] == hello.active_sha256.hex())
+        assert sum(d.boots for d in bus.drivers) == n + 20 and len(interrupted) == 20
+    assert rounds >= 1
+
+
+# Done-when (d): another driver's image, a tampered one, an older one refused; a newer one played.
+def test_driver_refuses_foreign_tampered_and_older_images(plans, tmp_path):
+    own, other = driver_key(KEY, "AVR-000001"), driver_key(KEY, "AVR-000002")
+    old, new = _config(plans, "a", "R01C01"), _config(plans, "a", "R01C02")
+    with AvrBus(2, KEY, tmp_path / "eeprom", trace_dir=tmp_path / "trace").start() as bus, \
+            serial.Serial(bus.port, BAUD, timeout=0.05) as port:
+        link = Link(port, BAUD)
+        assert _hello(link, 1).active_slot == 0  # blank
+        refusals = []
+        good = _signed(_image(old, 2), own)
+        tampered = bytearray(good)
+        tampered[60] ^= 0x10  # a chip flipped after signing, CRC made right again
+        tampered[CRC_OFFSET:] = struct.pack("<I", zlib.crc32(tampered[:CRC_OFFSET]))
+        damaged = bytearray(good)
+        damaged[60] ^= 0x10  # CRC left wrong
+        for image in (_signed(_image(old, 2), other), _signed(_image(old, 2), KEY), _image(old, 2), bytes(tampered),
+                      bytes(damaged)):
+            with pytest.raises(LinkError) as refused:
+                _send(link, 1, image)
+            refusals.append(Status(refused.value.status).name)
+        assert refusals == ["AUTH", "AUTH", "AUTH", "AUTH", "IMAGE"]
+        assert _hello(link, 1).active_slot == 0  # nothing was committed
+        assert struct.unpack("<BI", _send(link, 1, good).payload) == (1, 2)  # slot A, version 2
+        for image in (_signed(_image(old, 1), own), _signed(_image(old, 2, luminaire_id=old["id"] + 1), own)):
+            with pytest.raises(LinkError) as refused:
+                _send(link, 1, image)
+            assert (refused.value.status, refused.value.detail) == (Status.ROLLBACK, 2)
+        newer = _signed(_image(new, 3), own)
+        assert struct.unpack("<BI", _send(link, 1, newer).payload) == (2, 3)  # slot B, version 3
+        hello = _hello(link, 1)
+        assert (hello.active_slot, hello.active_version, hello.active_sha256) == (2, 3, hashlib.sha256(newer).digest())
+        time.sleep(0.4)
+    frame_format = FrameFormat.from_plan(load_plan(plans / "a" / "plan.yaml"))
+    assert _plays(tmp_path / "trace" / "1.vcd", [(frame_format, old), (frame_format, new)]) == new
+
+
+def test_transfer_resumes_after_a_power_cut(plans, tmp_path):
+    image = _signed(_image(_config(plans, "a", "R01C01"), 1), driver_key(KEY, "AVR-000001"))
+    sha = hashlib.sha256(image).digest()
+    with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.05) as port:
+        link = Link(port, BAUD)
+        link.request(1, Command.BEGIN, BEGIN_REQUEST.pack(len(image), 1, sha, 0), driver_s=0.5)
+        link.request(1, Command.WRITE, WRITE_HEAD.pack(0) + image[:128], driver_s=0.5)
+        bus.power_cut(1)
+        time.sleep(0.2)
+        with pytest.raises(LinkError) as refused:
+            link.request(1, Command.WRITE, WRITE_HEAD.pack(128) + image[128:], driver_s=0.5)
+        assert refused.value.status == Status.NOT_BEGUN  # RAM lost: a new BEGIN first
+        reply = link.request(1, Command.BEGIN, BEGIN_REQUEST.pack(len(image), 1, sha, 0), driver_s=0.5)
+        assert BEGIN_REPLY.unpack(reply.payload) == (128, zlib.crc32(image[:128]))  # resumed from the EEPROM
+        assert WRITE_REPLY.unpack(link.request(1, Command.WRITE, WRITE_HEAD.pack(128) + image[128:],
+                                               driver_s=0.5).payload) == (len(image),)
+        assert link.request(1, Command.COMMIT, sha, driver_s=1.0).payload == struct.pack("<BI", 1, 1)
+
+
+# Done-when (e): bytes corrupted on the line are refused by the firmware's CRC.
+def _answers(port: serial.Serial, wait_s: float = 0.06) -> list[Packet]:
+    deframer, packets, deadline = Deframer(), [], time.monotonic() + wait_s
+    port.timeout = 0.01  # Link leaves its last wait here
+    while time.monotonic() < deadline:
+        for frame in deframer.feed(port.read(max(1, port.in_waiting))):
+            try:
+                packets.append(decode(frame))
+            except WireError:
+                pass
+    return packets
+
+
+def test_corrupted_line_bytes_are_never_acted_on(plans, tmp_path):
+    image = _signed(_image(_config(plans, "a", "R01C01"), 1), driver_key(KEY, "AVR-000001"))
+    sha = hashlib.sha256(image).digest()
+    rng = random.Random(5)
+    with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.01) as port:
+        link = Link(port, BAUD)
+        link.request(1, Command.BEGIN, BEGIN_REQUEST.pack(len(image), 1, sha, 1), driver_s=0.5)
+        link.request(1, Command.WRITE, WRITE_HEAD.pack(0) + image[:128], driver_s=0.5)
+        tail = WRITE_HEAD.pack(128) + image[128:]
+        frames = 0
+        for seq in range(60):
+            line = bytearray(encode(Packet(1, 0, seq, Command.WRITE, tail)))
+            where = rng.randrange(len(line) - 1)  # any byte but the delimiter
+            line[where] ^= 1 << rng.randrange(8)
+            port.write(bytes(line) + b"\x00")  # a trailing delimiter ends a frame split by a zero
+            frames += 1
+            assert _answers(port) == [], (seq, where)
+        port.write(bytes(rng.randrange(1, 256) for _ in range(300)) + b"\x00")  # noise longer than any frame
+        assert _answers(port) == []
+        staged, _ = VERIFY_REPLY.unpack(link.request(1, Command.VERIFY).payload)
+        assert staged == 128  # none of the damaged WRITEs was executed
+        assert WRITE_REPLY.unpack(link.request(1, Command.WRITE, tail, driver_s=0.5).payload) == (len(image),)
+    assert frames == 60
