@@ -155,7 +155,8 @@ def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int
             offset = exc.detail  # the driver holds fewer (or more) bytes: continue from there
         if progress:
             progress(min(offset, len(image)), len(image))
-    staged, digest = VERIFY_REPLY.unpack(link.request(address, Command.VERIFY).payload[:VERIFY_REPLY.size])
+    verify = link.request(address, Command.VERIFY, driver_s=block_s)  # the driver hashes what it reads back
+    staged, digest = VERIFY_REPLY.unpack(verify.payload[:VERIFY_REPLY.size])
     if staged != len(image) or digest != sha:
         raise LinkError(f"driver {hello.serial} read back {staged} bytes hashing to {digest.hex()[:16]}..., "
                         f"not the image ({len(image)} bytes, {sha.hex()[:16]}...)", Status.HASH)
