@@ -11,8 +11,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from planner._files import load_json
+from planner._schema import Count, Finite, Positive, validation_message
 from planner.camera import Camera
 from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
 from planner.ellipse import Ellipse
@@ -20,57 +24,75 @@ from planner.errors import InputError
 from planner.positioning.locate import Snapshot
 
 
-def _number(value, where: str, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(f"{where} must be a number, got {value!r}")
-    if positive and value <= 0:
-        raise InputError(f"{where} must be positive, got {value!r}")
-    return float(value)
+class _CameraFields(BaseModel):
+    """The receiver's intrinsics [px]; ``fy`` defaults to ``fx``, the principal point to the image centre."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    fx: Positive
+    fy: Positive | None = None
+    cx: Finite | None = None
+    cy: Finite | None = None
+    width: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)]
+    height: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)]
 
 
-def _field(mapping, key: str, where: str):
-    if not isinstance(mapping, dict):
-        raise InputError(f"{where} must be a mapping, got {type(mapping).__name__}")
-    if key not in mapping:
-        raise InputError(f"{where} lacks field {key!r}")
-    return mapping[key]
+class _EllipseFields(BaseModel):
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    cx: Finite
+    cy: Finite
+    major: Positive
+    minor: Positive
+    angle_deg: Finite
+
+    @model_validator(mode="after")
+    def _axes(self) -> _EllipseFields:
+        if self.minor > self.major * (1 + 1e-9):
+            raise ValueError(f"minor axis {self.minor:g} px is longer than major {self.major:g} px")
+        return self
+
+
+class _Led(BaseModel):
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    id: Count
+    ellipse: _EllipseFields
+
+
+class ObservationFile(BaseModel):
+    """An observation: the camera and the decoded LEDs (at most :data:`MAX_OBSERVED_LEDS`), centres inside the image."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    camera: _CameraFields
+    leds: Annotated[list[_Led], Field(max_length=MAX_OBSERVED_LEDS)]
+
+    @model_validator(mode="after")
+    def _inside(self) -> ObservationFile:
+        w, h = self.camera.width, self.camera.height
+        for k, led in enumerate(self.leds):
+            e = led.ellipse
+            if not (0 <= e.cx <= w and 0 <= e.cy <= h):
+                raise ValueError(f"leds[{k}].ellipse: centre ({e.cx:g}, {e.cy:g}) px lies outside the {w} x {h} px "
+                                 "image")
+        return self
 
 
 def parse_snapshot(doc, where: str = "observation") -> Snapshot:
     """A :class:`Snapshot` from the decoded JSON document; :class:`InputError` names the bad field."""
-    cam = _field(doc, "camera", where)
-    w = int(_number(_field(cam, "width", f"{where}: camera"), f"{where}: camera.width", True))
-    h = int(_number(_field(cam, "height", f"{where}: camera"), f"{where}: camera.height", True))
-    fx = _number(_field(cam, "fx", f"{where}: camera"), f"{where}: camera.fx", True)
-    fy = _number(cam.get("fy", fx), f"{where}: camera.fy", True)
-    cx = _number(cam.get("cx", w / 2), f"{where}: camera.cx")
-    cy = _number(cam.get("cy", h / 2), f"{where}: camera.cy")
-    if max(w, h) > MAX_IMAGE_PX:
-        raise InputError(f"{where}: camera image {w} x {h} px, larger than {MAX_IMAGE_PX:,} px on a side")
-    leds = _field(doc, "leds", where)
-    if not isinstance(leds, list):
-        raise InputError(f"{where}: 'leds' must be a list")
-    if len(leds) > MAX_OBSERVED_LEDS:
-        raise InputError(f"{where}: {len(leds):,} LEDs in one image, more than the {MAX_OBSERVED_LEDS:,} a "
-                         "photo can show whole; list the LEDs of one image")
-    ids, ellipses = [], []
-    for k, led in enumerate(leds):
-        at = f"{where}: leds[{k}]"
-        led_id = _field(led, "id", at)
-        if isinstance(led_id, bool) or not isinstance(led_id, int) or led_id < 0:
-            raise InputError(f"{at}.id must be a whole number >= 0, got {led_id!r}")
-        e = _field(led, "ellipse", at)
-        vals = {key: _number(_field(e, key, f"{at}.ellipse"), f"{at}.ellipse.{key}", key in ("major", "minor"))
-                for key in ("cx", "cy", "major", "minor", "angle_deg")}
-        if vals["minor"] > vals["major"] * (1 + 1e-9):
-            raise InputError(f"{at}.ellipse: minor axis {vals['minor']:g} px is longer than major {vals['major']:g} px")
-        if not (0 <= vals["cx"] <= w and 0 <= vals["cy"] <= h):
-            raise InputError(f"{at}.ellipse: centre ({vals['cx']:g}, {vals['cy']:g}) px lies outside the "
-                             f"{w} x {h} px image")
-        ids.append(led_id)
-        ellipses.append(Ellipse(vals["cx"], vals["cy"], vals["major"], vals["minor"],
-                                math.radians(vals["angle_deg"]) % math.pi))
-    return Snapshot(Camera(w, h, fx, fy, cx, cy), ids, ellipses)
+    try:
+        obs = ObservationFile.model_validate(doc, strict=True)
+    except ValidationError as exc:
+        raise InputError(f"{where}: {validation_message(exc)}") from None
+    except RecursionError:
+        raise InputError(f"{where}: nested too deeply to be an observation") from None
+    c = obs.camera
+    camera = Camera(c.width, c.height, c.fx, c.fy if c.fy is not None else c.fx,
+                    c.cx if c.cx is not None else c.width / 2, c.cy if c.cy is not None else c.height / 2)
+    return Snapshot(camera, [led.id for led in obs.leds],
+                    [Ellipse(e.cx, e.cy, e.major, e.minor, math.radians(e.angle_deg) % math.pi)
+                     for e in (led.ellipse for led in obs.leds)])
 
 
 def read_snapshot(path: str | Path) -> Snapshot:

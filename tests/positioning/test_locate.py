@@ -10,10 +10,11 @@ from planner.camera import Camera, rotation_from_angles
 from planner.cli.locate import console_main
 from planner.cli.plan import main as plan_main
 from planner.ellipse import Ellipse
-from planner.errors import PositioningError
+from planner.errors import InputError, PositioningError
 from planner.plan_file import load_plan
 from planner.positioning.locate import Site, Snapshot, identify, locate
 from planner.positioning.observation import observe
+from planner.positioning.snapshot_file import parse_snapshot
 from planner.verify.windows import sample_poses, working_area
 
 
@@ -117,7 +118,7 @@ def _led(i, cx=2000.0):
 @pytest.mark.parametrize("content, code, message", [
     (None, 1, "no such observation file"),
     ("{\"camera\": ", 1, "line 1: not valid JSON"),
-    (_observation([{"id": 1}]), 1, "leds[0] lacks field 'ellipse'"),
+    (_observation([{"id": 1}]), 1, "leds[0].ellipse: is missing"),
     (_observation([_led(1), _led(2, 2500.0), _led(999, 1500.0)]), 1, "ID 999 is not in the plan"),
     (_observation([_led(1), _led(2, 2500.0)]), 3, "2 LEDs in the image: a position needs at least three"),
     (_observation([_led(1), _led(2, 2500.0), _led(3, 3000.0)]), 3, "lie on one line"),
@@ -129,6 +130,22 @@ def test_bad_observations_give_one_line_and_an_exit_code(plan_path, tmp_path, ca
         obs.write_text(content if isinstance(content, str) else json.dumps(content))
     got, out, err = _run([plan_path, obs], capsys)
     assert got == code and out == "" and message in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda d: d["leds"][0].update(id=True), "leds[0].id: must be a valid integer (got True)"),
+    (lambda d: d["leds"][0].update(id=-1), "leds[0].id: must be greater than or equal to 0 (got -1)"),
+    (lambda d: d["camera"].update(fx="4250"), "camera.fx: must be a valid number (got '4250')"),
+    (lambda d: d["camera"].update(width=1e9), "camera.width: must be a valid integer (got 1000000000.0)"),
+    (lambda d: d["leds"][0]["ellipse"].update(minor=500.0), "minor axis 500 px is longer than major 400 px"),
+    (lambda d: d.update(leds=[_led(1)] * 2001), "leds: must have at most 2000 items, not 2001"),
+])
+def test_observation_fields_are_checked_by_path(change, message):
+    doc = _observation([_led(1), _led(2, 2500.0), _led(3, 3000.0)])
+    change(doc)
+    with pytest.raises(InputError) as err:
+        parse_snapshot(doc, "obs.json")
+    assert str(err.value).startswith("obs.json: ") and message in str(err.value)
 
 
 def test_locate_needs_an_observation_or_a_pose(plan_path, capsys):
