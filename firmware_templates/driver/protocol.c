@@ -337,11 +337,45 @@ static uint8_t image_ok(uint32_t length)
     return utf8_ok(image + IMG_NAME, name) && ticks >= 160 && ticks <= 65536UL; /* 244 Hz .. 100 kHz */
 }
 
+/* HMAC-SHA256 under this driver's key over image[0, 132) equals image[132, 164), compared in constant
+ * time. Not inlined, so its 200 bytes of stack are free again before the commit reloads the slots. */
+static __attribute__((noinline)) uint8_t signed_for_me(void)
+{
+    uint8_t mac[32], diff = 0, i;
+    hmac_ctx h;
+    hmac_init(&h, me.key, sizeof me.key);
+    sha256_update(&h.inner, image, IMG_SIGNATURE);
+    hmac_final(&h, mac);
+    for (i = 0; i < 32; ++i) {
+        diff |= (uint8_t)(mac[i] ^ image[IMG_SIGNATURE + i]);
+    }
+    return diff == 0;
+}
+
+/* The commit record of the staged slot, written last and read back; 0 if it did not read back. */
+static __attribute__((noinline)) uint8_t write_record(const uint8_t digest[32], uint32_t version)
+{
+    entry_t record;
+    uint16_t where = EE_RECORD(staging_slot), i;
+    record.word = active_slot ? active.word + 1u : 1u;
+    record.length = staging.length;
+    record.version = version;
+    memcpy(record.sha, digest, 32);
+    seal(&record, "VLPS");
+    eeprom_update_block(&record, (void *)where, sizeof record); /* last: the slot is valid with its final byte */
+    for (i = 0; i < sizeof record; ++i) {
+        if (eeprom_read_byte((const uint8_t *)(where + i)) != ((const uint8_t *)&record)[i]) {
+            detail = where + i;
+            return 0;
+        }
+    }
+    return 1;
+}
+
 static int16_t cmd_commit(const uint8_t *in, uint16_t n, uint8_t *out)
 {
-    uint8_t digest[32], mac[32], diff = 0, i;
+    uint8_t digest[32];
     uint32_t version;
-    hmac_ctx h;
     if (n != 32) {
         return -BAD_REQUEST;
     }
@@ -364,33 +398,15 @@ static int16_t cmd_commit(const uint8_t *in, uint16_t n, uint8_t *out)
     if (!image_ok(staging.length) || version != staging.version) {
         return -IMAGE;
     }
-    hmac_init(&h, me.key, sizeof me.key);
-    sha256_update(&h.inner, image, IMG_SIGNATURE);
-    hmac_final(&h, mac);
-    for (i = 0; i < 32; ++i) {
-        diff |= (uint8_t)(mac[i] ^ image[IMG_SIGNATURE + i]); /* constant time */
-    }
-    if (diff) {
+    if (!signed_for_me()) {
         return -AUTH;
     }
     if (active_slot && (version < active.version || (version == active.version && memcmp(digest, active.sha, 32)))) {
         detail = active.version;
         return -ROLLBACK;
     }
-    if (!active_slot || memcmp(digest, active.sha, 32) != 0) {
-        entry_t record, back;
-        uint16_t where = EE_RECORD(staging_slot);
-        record.word = active_slot ? active.word + 1u : 1u;
-        record.length = staging.length;
-        record.version = version;
-        memcpy(record.sha, digest, 32);
-        seal(&record, "VLPS");
-        eeprom_update_block(&record, (void *)where, sizeof record); /* last: the slot is valid with its final byte */
-        eeprom_read_block(&back, (const void *)where, sizeof back);
-        if (memcmp(&back, &record, sizeof back) != 0) {
-            detail = where;
-            return -FLASH;
-        }
+    if ((!active_slot || memcmp(digest, active.sha, 32) != 0) && !write_record(digest, version)) {
+        return -FLASH;
     }
     load(); /* the new active slot as the EEPROM now holds it; a new BEGIN is needed */
     play_active();
