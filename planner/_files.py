@@ -47,7 +47,8 @@ def load_yaml(path: str | Path, missing: str = "no such file"):
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}:" if mark else ""
-        raise InputError(f"{path}:{line} not valid YAML ({getattr(exc, 'problem', None) or exc})") from exc
+        what = " ".join(str(getattr(exc, "problem", None) or exc).split())  # some of PyYAML's span lines
+        raise InputError(f"{path}:{line} not valid YAML ({what})") from exc
 
 
 def load_json(path: str | Path, what: str, missing: str = "no such file"):
