@@ -226,12 +226,16 @@ def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
     clash = None
     def side(x):
         return np.linalg.norm(xyz[np.roll(x, -1)] - xyz[x], axis=1)
-    for a, u in find_rivals(np.array(unsampled), xyz, np.ones(len(lums), np.int64), 0.01):
-        for r in range(3):
-            t = np.roll(rivals_ccw(unsampled[a], xyz), -r)
-            diff = [k for k in range(3) if ids[t[k]] != ids[u[k]]]
-            if np.abs(side(t) - side(np.array(u))).max() <= 0.01 and len(diff) == 1 and not set(t) & set(u):
-                clash = (t.tolist(), list(u), diff[0])
+    for start in range(0, len(unsampled), 20):  # a few windows at a time: one clash is enough
+        chunk = np.array(unsampled[start:start + 20])
+        for a, u in find_rivals(chunk, xyz, np.ones(len(lums), np.int64), 0.01):
+            for r in range(3):
+                t = np.roll(rivals_ccw(chunk[a].tolist(), xyz), -r)
+                diff = [k for k in range(3) if ids[t[k]] != ids[u[k]]]
+                if np.abs(side(t) - side(np.array(u))).max() <= 0.01 and len(diff) == 1 and not set(t) & set(u):
+                    clash = (t.tolist(), list(u), diff[0])
+                    break
+            if clash:
                 break
         if clash:
             break
