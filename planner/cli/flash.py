@@ -170,6 +170,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.json and not (args.bus or args.dry_run):
         raise UsageError("--json needs --bus or --dry-run: interactive mode talks to the installer on this terminal")
     say = sys.stderr if args.json else sys.stdout  # with --json, stdout carries the JSON document alone
+    from planner.firmware.image import MAX_IMAGE_VERSION
+
+    if args.image_version is not None and args.image_version > MAX_IMAGE_VERSION:
+        raise UsageError(f"--image-version {args.image_version:,}: vlp-flash signs versions up to "
+                         f"{MAX_IMAGE_VERSION:,} (a driver at 2^32 - 1 could never be updated again)")
     report: list[dict] = []
     doc_path = Path(args.plan)
     from planner.flash.flasher import flash_driver
@@ -182,11 +187,6 @@ def main(argv: list[str] | None = None) -> int:
     plan = load_plan(doc_path)
     digest = plan_hash(doc_path.read_text("utf-8"))
     targets = _targets(plan, args)
-    from planner.firmware.image import MAX_IMAGE_VERSION
-
-    if args.image_version is not None and args.image_version > MAX_IMAGE_VERSION:
-        raise UsageError(f"--image-version {args.image_version:,}: vlp-flash signs versions up to "
-                         f"{MAX_IMAGE_VERSION:,} (a driver at 2^32 - 1 could never be updated again)")
     key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
     images = {e.name: plan_image(doc_path, e, digest) for e in targets}
     where = _addresses(plan, args.bus_map) if args.bus else {}
