@@ -9,7 +9,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-SLOW_FIXTURES = {"plan512_dir", "test_locate.py:plan_path", "test_efficiency.py:table",
+SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
                  "test_efficiency.py:small_json", "test_accuracy.py:table3"}
 """Fixtures that plan a large site or run a whole study (tens of seconds): every test using one is ``slow``."""
 
@@ -21,15 +21,35 @@ def pytest_collection_modifyitems(items):
             item.add_marker(pytest.mark.slow)
 
 
-@pytest.fixture(scope="session")
-def plan512_dir(tmp_path_factory) -> Path:
-    """``grid-512.yaml`` planned once for the whole run (firmware and report, no map); read it, never write into it."""
+def _shared_plan(tmp_path_factory, name: str, leds: int | None) -> Path:
+    """``layouts/<name>`` planned with default options (firmware and report, no maps, no error map), once
+    for the whole run: the first xdist worker to ask plans it, the others wait on a lock and read it."""
+    import fcntl
+
     from planner.cli.plan import main as plan_main
 
-    out = tmp_path_factory.mktemp("shared") / "p512"
-    plan_main([str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "-o", str(out), "--no-map", "--json",
-               "--error-poses-per-m2", "0"])
+    root = tmp_path_factory.getbasetemp().parent  # shared by every worker of one run
+    out = root / "shared-plans" / Path(name).stem
+    out.parent.mkdir(exist_ok=True)
+    with open(root / "shared-plans" / f"{out.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (out / "plan.yaml").is_file():
+            plan_main([str(ROOT / "layouts" / name), *(["--leds", str(leds)] if leds else []), "-o", str(out),
+                       "--no-map", "--json", "--error-poses-per-m2", "0"])
     return out
+
+
+@pytest.fixture(scope="session")
+def plan512_dir(tmp_path_factory) -> Path:
+    """``grid-512.yaml`` planned once for the whole run (default IDs; firmware and report, no map); read it,
+    never write into it."""
+    return _shared_plan(tmp_path_factory, "grid-512.yaml", 512)
+
+
+@pytest.fixture(scope="session")
+def plan256_dir(tmp_path_factory) -> Path:
+    """``grid-256.yaml`` planned once for the whole run, as :func:`plan512_dir`."""
+    return _shared_plan(tmp_path_factory, "grid-256.yaml", None)
 
 
 def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: float = 0.0,

@@ -19,7 +19,7 @@ def _summary(argv, capsys) -> dict:
     code = main(argv)
     summary = json.loads(capsys.readouterr().out)
     v = summary["verification"]
-    clean = v["ambiguous"] == 0 and not (v.get("window_set") or {}).get("read_alike")
+    clean = v is None or v["ambiguous"] == 0 and not (v.get("window_set") or {}).get("read_alike")
     assert code == (0 if clean else 3)
     return summary
 
@@ -32,7 +32,7 @@ def _summary(argv, capsys) -> dict:
 @pytest.mark.slow
 def test_bundled_grids_reproduce_the_paper(tmp_path, capsys, name, leds, bits, naive, efficiency):
     summary = _summary([str(LAYOUTS / name), "--leds", str(leds), "-o", str(tmp_path / "out"), "--json",
-                        "--scheme", "paper"], capsys)
+                        "--scheme", "paper", "--no-verify", "--no-report", "--no-map"], capsys)  # IDs only
     assert (summary["bits"], summary["naive_bits"], summary["efficiency"]) == (bits, naive, efficiency)
     doc = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
     assert doc["format"] == "vlp-plan/1" and doc["code"]["bits"] == bits

@@ -5,10 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from conftest import ROOT
 from planner.camera import Camera, rotation_from_angles
 from planner.cli.locate import console_main
-from planner.cli.plan import main as plan_main
 from planner.ellipse import Ellipse
 from planner.errors import InputError, PositioningError
 from planner.plan_file import load_plan
@@ -19,11 +17,8 @@ from planner.verify.windows import sample_poses, working_area
 
 
 @pytest.fixture(scope="module")
-def plan_path(tmp_path_factory):
-    out = tmp_path_factory.mktemp("plan") / "g256"
-    plan_main([str(ROOT / "layouts" / "grid-256.yaml"), "-o", str(out), "--no-map", "--json",
-               "--error-poses-per-m2", "0"])
-    return out / "plan.yaml"
+def plan_path(plan256_dir):
+    return plan256_dir / "plan.yaml"
 
 
 @pytest.fixture(scope="module")
