@@ -311,19 +311,19 @@ def test_faults_spec_and_seeded_line_faults_repeat_exactly():
 
 def test_sim_url_opens_drivers_in_process_and_stalls_are_late():
     protocol_sim.register()
-    port = serial.serial_for_url(f"sim://?drivers=3&first=10&key={KEY.hex()}&faults=stall=1,stall_s=0.2"
+    port = serial.serial_for_url(f"sim://?drivers=3&first=10&key={KEY.hex()}&faults=stall=1,stall_s=0.5"
                                  f"&slot_size={SLOT}&prefix=T-", timeout=0.05)
     port.write(encode(Packet(11, 0, 1, Command.HELLO)))
     assert port.read(200) == b""  # later than the timeout
-    port.timeout = 0.5
+    port.timeout = 5.0
     started = time.monotonic()
     first = port.read(1)
     frames = Deframer().feed(first + port.read(port.in_waiting))
-    assert time.monotonic() - started < 0.45
+    assert time.monotonic() - started < 4.0  # read returns when the late answer arrives, not at its timeout
     assert Hello.unpack(decode(frames[0]).payload).serial == "T-000011"
-    port.bus.stall(10, 0.3)  # the one-shot hook: only the next answer of address 10 is late
+    port.bus.stall(10, 2.0)  # the one-shot hook: only the next answer of address 10 is late
     port.write(encode(Packet(10, 0, 2, Command.HELLO)) + encode(Packet(12, 0, 3, Command.HELLO)))
-    time.sleep(0.25)  # past the faults' 0.2 s stall, before the hook's 0.3 s
+    time.sleep(0.7)  # past the faults' 0.5 s stall, before the hook's 2 s (margins for a busy machine)
     assert [decode(f).address for f in Deframer().feed(port.read(port.in_waiting))] == [12]
     port.close()
     with pytest.raises(serial.SerialException, match="key"):
