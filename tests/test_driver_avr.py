@@ -62,7 +62,8 @@ ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
 BAUD = 250_000  # the firmware's line rate (exact at 16 MHz)
-NAMES = ["R01C01", "R01C02", "R01C03", "R01C04", "R01C05", "R01C06", "R01C07", "R01C08"]
+RETRIES = 12  # this file's own requests: the emulated MCUs share two cores with the rest of the suite
+NAMES = ["R01C01", "R01C02", "R01C03", "R01C04", "R01C05", "R01C06"]
 
 
 @pytest.fixture(scope="module")
@@ -83,10 +84,10 @@ def _config(plans: Path, plan: str, name: str) -> dict:
     return json.loads((plans / plan / "firmware" / name / "vlp_config.json").read_text())
 
 
-def _flash(plans: Path, plan: str, port: str, journal: Path, names: list[str]) -> subprocess.Popen:
+def _flash(plans: Path, plan: str, port: str, journal: Path, names: list[str], *extra: str) -> subprocess.Popen:
     return subprocess.Popen([str(BIN / "vlp-flash"), str(plans / plan / "plan.yaml"), *names, "--bus", "--bus-map",
                              str(plans / "map.csv"), "--port", port, "--key-file", str(plans / "key"), "--baud",
-                             str(BAUD), "--journal", str(journal), "--json"],
+                             str(BAUD), "--journal", str(journal), "--json", *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -220,8 +221,11 @@ def test_power_cuts_leave_old_or_new_and_the_journal_agrees(plans, tmp_path):
     formats = {p: FrameFormat.from_plan(load_plan(plans / p / "plan.yaml")) for p in "ab"}
     choices = {name: [(formats[p], _config(plans, p, name)) for p in "ab"] for name in NAMES}
     with AvrBus(n, KEY, tmp_path / "eeprom", trace_dir=tmp_path / "trace").start() as bus:
-        run = _flash(plans, "a", bus.port, tmp_path / "journal-0.json", NAMES)
-        assert run.wait(timeout=60) == 0
+        for _ in range(3):  # the starting point: every driver on plan a (resumed if the machine is slow)
+            run = _flash(plans, "a", bus.port, tmp_path / "journal-0.json", NAMES, "--resume")
+            if run.wait(timeout=60) == 0:
+                break
+        assert run.returncode == 0
         cuts, rounds, interrupted = 0, 0, []
         while cuts < 20:
             rounds += 1
@@ -240,7 +244,7 @@ def test_power_cuts_leave_old_or_new_and_the_journal_agrees(plans, tmp_path):
             time.sleep(0.5)
             entries = json.loads(journal.read_text())["luminaires"]
             with serial.Serial(bus.port, BAUD, timeout=0.05) as port:
-                link = Link(port, BAUD)
+                link = Link(port, BAUD, retries=RETRIES)
                 for address, name in enumerate(NAMES, start=1):
                     hello = _hello(link, address)
                     trace = bus.driver(address).trace_path
@@ -262,7 +266,7 @@ def test_driver_refuses_foreign_tampered_and_older_images(plans, tmp_path):
     old, new = _config(plans, "a", "R01C01"), _config(plans, "a", "R01C02")
     with AvrBus(2, KEY, tmp_path / "eeprom", trace_dir=tmp_path / "trace").start() as bus, \
             serial.Serial(bus.port, BAUD, timeout=0.05) as port:
-        link = Link(port, BAUD)
+        link = Link(port, BAUD, retries=RETRIES)
         assert _hello(link, 1).active_slot == 0  # blank
         refusals = []
         good = _signed(_image(old, 2), own)
@@ -296,7 +300,7 @@ def test_transfer_resumes_after_a_power_cut(plans, tmp_path):
     image = _signed(_image(_config(plans, "a", "R01C01"), 1), driver_key(KEY, "AVR-000001"))
     sha = hashlib.sha256(image).digest()
     with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.05) as port:
-        link = Link(port, BAUD)
+        link = Link(port, BAUD, retries=RETRIES)
         link.request(1, Command.BEGIN, BEGIN_REQUEST.pack(len(image), 1, sha, 0), driver_s=0.5)
         link.request(1, Command.WRITE, WRITE_HEAD.pack(0) + image[:128], driver_s=0.5)
         bus.power_cut(1)
@@ -309,6 +313,33 @@ def test_transfer_resumes_after_a_power_cut(plans, tmp_path):
         assert WRITE_REPLY.unpack(link.request(1, Command.WRITE, WRITE_HEAD.pack(128) + image[128:],
                                                driver_s=0.5).payload) == (len(image),)
         assert link.request(1, Command.COMMIT, sha, driver_s=1.0).payload == struct.pack("<BI", 1, 1)
+
+
+def test_a_retry_is_answered_from_the_seq_cache_not_executed_again(plans, tmp_path):
+    image = _signed(_image(_config(plans, "a", "R01C01"), 1), driver_key(KEY, "AVR-000001"))
+    with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.05) as port:
+        link = Link(port, BAUD, retries=RETRIES)
+        commit = _send(link, 1, image)
+        again = encode(Packet(1, 0, link.seq, Command.COMMIT, hashlib.sha256(image).digest()))  # same seq
+        port.write(again)
+        assert _answers(port, 0.2) == [commit]  # executed again it would be NOT_BEGUN
+        port.write(encode(Packet(0xFFFF, 0, 7, Command.HELLO)))  # point to point: "any driver"
+        assert [(p.address, p.flags, p.seq) for p in _answers(port, 0.2)] == [(1, 1, 7)]  # answered as itself
+        with pytest.raises(LinkError) as refused:
+            link.request(1, Command.VERIFY)
+        assert refused.value.status == Status.NOT_BEGUN  # a new seq is executed
+
+
+def test_a_trace_without_whole_chips_is_one_clear_error(plans, tmp_path):
+    frame_format = FrameFormat.from_plan(load_plan(plans / "a" / "plan.yaml"))
+    head = "$timescale 1ps $end\n$var wire 1 ! led $end\n$enddefinitions $end\n"
+    steady, uneven = tmp_path / "steady.vcd", tmp_path / "uneven.vcd"
+    steady.write_text(head + "#0\n1!\n")  # a blank driver: light, no chips
+    uneven.write_text(head + "".join(f"#{t}\n{k % 2}!\n" for k, t in enumerate([0, 1000, 2000, 3500, 4500])))
+    with pytest.raises(InputError, match="played no chips"):
+        read_light(steady, frame_format)
+    with pytest.raises(InputError, match="not chips at one rate"):
+        read_light(uneven, frame_format)
 
 
 # Done-when (e): bytes corrupted on the line are refused by the firmware's CRC.
@@ -329,7 +360,7 @@ def test_corrupted_line_bytes_are_never_acted_on(plans, tmp_path):
     sha = hashlib.sha256(image).digest()
     rng = random.Random(5)
     with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.01) as port:
-        link = Link(port, BAUD)
+        link = Link(port, BAUD, retries=RETRIES)
         link.request(1, Command.BEGIN, BEGIN_REQUEST.pack(len(image), 1, sha, 1), driver_s=0.5)
         link.request(1, Command.WRITE, WRITE_HEAD.pack(0) + image[:128], driver_s=0.5)
         tail = WRITE_HEAD.pack(128) + image[128:]

@@ -88,7 +88,8 @@ int main(void)
     UCSR0C = _BV(UCSZ01) | _BV(UCSZ00); /* 8N1 */
     UCSR0B = _BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0);
     set_sleep_mode(SLEEP_MODE_IDLE);
-    driver_boot(); /* reads the EEPROM, starts the modulator, enables interrupts */
+    sei(); /* requests arriving while the slots are hashed wait in the ring */
+    driver_boot(); /* reads the EEPROM, starts the modulator */
     for (;;) {
         uint8_t b;
         cli();

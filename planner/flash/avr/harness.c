@@ -163,7 +163,7 @@ int main(int argc, char **argv)
     avr_io_t *io;
     uint8_t *eeprom;
     int fd;
-    avr_cycle_count_t next_service = 0, next_flush = 0;
+    avr_cycle_count_t next_service = 16000, next_flush = 0; /* input waits 1 ms: the USART is set up by then */
 
     if (argc != 4) {
         fprintf(stderr, "usage: vlp-avr-harness FIRMWARE.elf EEPROM.bin TRACE.vcd|-\n");

@@ -8,7 +8,10 @@ decides who answers (docs/protocol.md section 1). Each driver's EEPROM is the 1,
 file ``<eeprom dir>/<serial>.eeprom``, provisioned with its bus address, serial and
 per-driver key (planner/flash/keys.py) and written through by the harness on every byte
 the firmware programs; :meth:`AvrBus.power_cut` kills a driver's process (SIGKILL, at
-whatever instruction it is) and boots it again from that file. With a trace folder,
+whatever instruction it is) and boots it again from that file. At start-up each driver
+must answer one HELLO on its own pipe before the host gets the line (a power-on self-test:
+on a loaded machine starting the processes can take longer than the host's retries);
+after a power cut the host meets the reboot as it is. With a trace folder,
 driver ``a``'s LED pin is traced to ``<trace dir>/<a>.vcd`` (restarted at every boot).
 """
 
@@ -28,7 +31,7 @@ from pathlib import Path
 from planner.errors import UsageError
 from planner.flash.avr.build import EEPROM_BYTES, build_firmware, build_harness
 from planner.flash.keys import driver_key
-from planner.flash.wire import Deframer, WireError, decode
+from planner.flash.wire import Command, Deframer, Packet, WireError, decode, encode
 
 PROVISION_MAGIC = b"VLPK"
 PROVISION = struct.Struct("<4sHH16s32s")  # magic, bus address, 0, serial (NUL-padded), driver key; then CRC-32
@@ -54,6 +57,13 @@ def provision(path: Path, address: int, serial: str, key: bytes) -> None:
             f.write(provision_block(address, serial, key))
     except OSError as exc:
         raise UsageError(f"{path}: cannot use as an EEPROM image ({exc.strerror or exc})") from None
+
+
+def _decoded(frame: bytes) -> Packet | None:
+    try:
+        return decode(frame)
+    except WireError:
+        return None
 
 
 @dataclass
@@ -105,6 +115,8 @@ class AvrBus:
         self.port = os.ttyname(self.slave)
         for driver in self.drivers:
             self._boot(driver)
+        for driver in self.drivers:
+            self._await_boot(driver)
 
     def driver(self, address: int) -> EmulatedDriver:
         for d in self.drivers:
@@ -117,6 +129,23 @@ class AvrBus:
         driver.process = subprocess.Popen([str(self.harness), str(self.firmware), str(driver.eeprom_path), trace],
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
         driver.boots += 1
+
+    def _await_boot(self, driver: EmulatedDriver, timeout_s: float = 30.0) -> None:
+        """Power-on self-test, before the host gets the line: the driver answers a HELLO on its own pipe."""
+        p = driver.process
+        assert p is not None and p.stdin is not None and p.stdout is not None
+        deframer, deadline = Deframer(), time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            p.stdin.write(encode(Packet(driver.address, 0, 0, Command.HELLO)))  # again every 0.5 s
+            ready, _, _ = select.select([p.stdout], [], [], min(0.5, max(0.0, deadline - time.monotonic())))
+            data = os.read(p.stdout.fileno(), 4096) if ready else b""
+            if ready and not data:
+                break  # the harness exited
+            if any(_decoded(f) is not None for f in deframer.feed(data)):
+                return
+        raise UsageError(f"emulated driver {driver.serial} (address {driver.address}) did not answer at power-up "
+                         f"within {timeout_s:g} s; run {self.harness} {self.firmware} {driver.eeprom_path} - by hand "
+                         "to see why")
 
     def power_cut(self, address: int) -> None:
         """Cut the driver's power at this instant (SIGKILL) and power it up again from its EEPROM."""
@@ -176,11 +205,9 @@ class AvrBus:
             time.sleep(0.05)
             return
         for frame in self._host_frames.feed(data):  # only to tell tests whom the host is talking to
-            try:
-                packet = decode(frame)
-            except WireError:
-                continue
-            self.last_request = (packet.address, packet.command)
+            packet = _decoded(frame)
+            if packet is not None:
+                self.last_request = (packet.address, packet.command)
         with self._lock:
             for d in self.drivers:
                 if d.process is not None and d.process.stdin is not None:
