@@ -184,6 +184,26 @@ def test_firmware_builds_with_werror_and_fits(tmp_path):
     assert build_harness().is_file()
 
 
+def test_a_missing_toolchain_is_one_line_naming_the_packages(tmp_path, monkeypatch):
+    import planner.flash.avr.build as build
+
+    monkeypatch.setattr(build.shutil, "which", lambda name: None)
+    with pytest.raises(build.ToolchainError, match="avr-gcc not found.*apt-get install gcc-avr avr-libc simavr "
+                                                   "libsimavr-dev"):
+        build.build_firmware(tmp_path)
+
+
+def test_driver_sim_flags_of_the_other_firmware_are_refused(plans, capsys):
+    from planner.cli.driver_sim import console_main
+
+    key = str(plans / "key")
+    assert console_main(["--firmware", "avr", "--faults", "corrupt=0.1", "--key-file", key]) == 2
+    assert console_main(["--trace", "traces", "--key-file", key]) == 2  # --firmware sim, the default
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["vlp-driver-sim: error: --faults cannot be used with --firmware avr (see vlp-driver-sim --help)",
+                   "vlp-driver-sim: error: --trace cannot be used with --firmware sim (see vlp-driver-sim --help)"]
+
+
 # Done-when (b): vlp-driver-sim --firmware avr, flashed by vlp-flash, every LED read back.
 @pytest.mark.slow
 def test_flash_four_emulated_drivers_and_read_their_light(plans, tmp_path):
@@ -304,7 +324,10 @@ def test_transfer_resumes_after_a_power_cut(plans, tmp_path):
         link.request(1, Command.BEGIN, BEGIN_REQUEST.pack(len(image), 1, sha, 0), driver_s=0.5)
         link.request(1, Command.WRITE, WRITE_HEAD.pack(0) + image[:128], driver_s=0.5)
         bus.power_cut(1)
-        time.sleep(0.2)
+        time.sleep(0.3)
+        port.write(encode(Packet(1, 0, 99, Command.HELLO)))
+        answers = _answers(port, 1.0)  # the first bytes after a boot are the answer, nothing before it
+        assert [(p.seq, Hello.unpack(p.payload).serial) for p in answers] == [(99, "AVR-000001")]
         with pytest.raises(LinkError) as refused:
             link.request(1, Command.WRITE, WRITE_HEAD.pack(128) + image[128:], driver_s=0.5)
         assert refused.value.status == Status.NOT_BEGUN  # RAM lost: a new BEGIN first

@@ -13,6 +13,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -151,6 +152,16 @@ static void pace(avr_t *a, avr_cycle_count_t how_long)
     }
 }
 
+/* simavr's own logger writes its chatter ("Loaded 8674 .text ...") to stdout, which is the line here:
+ * errors go to stderr, the rest nowhere. */
+static void log_to_stderr(avr_t *a, const int level, const char *format, va_list ap)
+{
+    (void)a;
+    if (level <= LOG_ERROR) {
+        vfprintf(stderr, format, ap);
+    }
+}
+
 static void on_signal(int signum)
 {
     (void)signum;
@@ -169,6 +180,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: vlp-avr-harness FIRMWARE.elf EEPROM.bin TRACE.vcd|-\n");
         return 2;
     }
+    avr_global_logger_set(log_to_stderr);
     memset(&fw, 0, sizeof fw);
     if (elf_read_firmware(argv[1], &fw) != 0) {
         fprintf(stderr, "vlp-avr-harness: %s: not a readable AVR ELF file\n", argv[1]);

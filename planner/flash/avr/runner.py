@@ -107,16 +107,20 @@ class AvrBus:
         self._host_frames = Deframer()
         self._lock = threading.Lock()
         self._wake_r, self._wake_w = os.pipe()
-        self._stopping = False
+        self._stopping = self._closed = False
         self._thread: threading.Thread | None = None
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)  # no echo, no line editing: bytes pass unchanged
         os.set_blocking(self.master, False)
         self.port = os.ttyname(self.slave)
-        for driver in self.drivers:
-            self._boot(driver)
-        for driver in self.drivers:
-            self._await_boot(driver)
+        try:
+            for driver in self.drivers:
+                self._boot(driver)
+            for driver in self.drivers:
+                self._await_boot(driver)
+        except BaseException:
+            self.close()  # no MCU left running, no terminal left open
+            raise
 
     def driver(self, address: int) -> EmulatedDriver:
         for d in self.drivers:
@@ -246,7 +250,10 @@ class AvrBus:
             self._thread = None
 
     def close(self) -> None:
-        """Stop serving, stop every driver (SIGTERM: traces flushed) and close the terminal."""
+        """Stop serving, stop every driver (SIGTERM: traces flushed) and close the terminal (once)."""
+        if self._closed:
+            return
+        self._closed = True
         self.stop()
         with self._lock:
             for d in self.drivers:
