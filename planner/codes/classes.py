@@ -77,6 +77,27 @@ def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, match
     return Groups(np.take_along_axis(triples[rows], idx, axis=1), group[cls][rows], is_window[rows])
 
 
+def clique_lower_bound(windows: np.ndarray, xyz: np.ndarray) -> int:
+    """Fewest labels any valid labelling needs, by counting: windows of one exact shape (sides equal
+    to :data:`SHAPE_RESOLUTION_M`, read counter-clockwise) all read like each other under equal labels,
+    so each needs its own label triple: ``K^3`` (``(K^3 + 2K)/3`` for a shape with threefold symmetry)
+    must reach the largest such class (:func:`planner.codes.window.lower_bound_labels`)."""
+    from planner.codes.window import lower_bound_labels
+
+    win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0),
+                            xyz[:, :2])
+    if len(win) == 0:
+        return 1
+    rounded = np.round(np.stack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)], 1)
+                       / SHAPE_RESOLUTION_M).astype(np.int64)
+    _, rank = np.unique(rounded.reshape(-1, 3), axis=0, return_inverse=True)
+    rank = rank.reshape(-1, 3)
+    used, shape = np.unique(rank.min(axis=1), return_inverse=True)
+    symmetric = np.zeros(len(used), dtype=bool)
+    symmetric[shape] = (rank == rank[:, :1]).all(axis=1)
+    return lower_bound_labels(shape, symmetric)
+
+
 def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Join classes whose shapes lie within the tolerance in some rotation; returns each class's
     group, the further turn that brings it into its group's order (first found wins), and

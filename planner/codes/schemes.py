@@ -159,9 +159,10 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
         def index_for(K: int) -> pairwise.ConflictIndex | None:
             return classes.ClassIndex(n, groups, K) if classes.ClassIndex.fits(groups, K) else None
     unique_bits = bits_for(n)
+    bound = classes.clique_lower_bound(proof.triangles, xyz)  # no fewer labels can work: not tried
     labels, k, tried, steps_of = None, n, [], 0
     max_steps = max(1000, PROVED_STEPS_PER_LUMINAIRE * n)
-    for b in range(1, unique_bits):
+    for b in range(max(1, bits_for(bound)), unique_bits):
         width = index_for(2 ** b)
         if width is None:
             continue
@@ -181,10 +182,10 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
         observations[seed] = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
     check = classify(observations[seed], ids)
     detail = {"windows": len(proof.triangles), **size, "widths_tried": tried,
-              "steps": int(steps_of), "max_steps": max_steps, "labels": int(k), "optimal": False,
-              "lower_bound_labels": 1}
-    return Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, unique_bits, 1, method,
-                      detail), check
+              "steps": int(steps_of), "max_steps": max_steps, "labels": int(k),
+              "optimal": bits == bits_for(bound), "lower_bound_labels": int(bound)}
+    return Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, unique_bits, bits_for(bound),
+                      method, detail), check
 
 
 def assign_unique(xy: np.ndarray, graph: NeighbourGraph) -> Assignment:

@@ -5,7 +5,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy, hex_xy
-from planner.codes.classes import ClassIndex, shape_groups
+from planner.codes.classes import ClassIndex, clique_lower_bound, shape_groups
 from planner.codes.pairwise import alike_pairs, search
 from planner.codes.rivals import find_rivals, site_triples
 
@@ -106,3 +106,22 @@ def test_too_many_labels_for_the_table_budget_do_not_fit():
     groups = shape_groups(site_triples(xy, 0.75), _xyz(xy), TOL)
     assert ClassIndex.fits(groups, 8)
     assert not ClassIndex.fits(groups, 2 ** 12)
+
+
+def test_the_clique_bound_counts_the_largest_set_of_windows_of_one_shape():
+    """Copies of one L triangle (any of its four turns) read alike under equal labels, so each needs
+    its own label triple: 64 copies fit 4 labels (4^3), 73 need 5. On an exact triangular lattice the
+    unit triangles have threefold symmetry, so only (K^3 + 2K) / 3 readings tell them apart."""
+    xy = grid_xy(6, 6, 0.5, 0.5)
+    at = {(round(x / 0.5), round(y / 0.5)): k for k, (x, y) in enumerate(xy)}
+    ls = [(at[c, r], at[c + dc, r], at[c, r + dr]) for c in range(1, 5) for r in range(1, 5)
+          for dc, dr in ((1, 1), (-1, 1), (1, -1), (-1, -1))]
+    assert len(ls) == 64 and clique_lower_bound(np.array(ls), _xyz(xy)) == 4
+    ls += [(at[c, 0], at[c + 1, 0], at[c, 1]) for c in range(5)] + [(at[0, r], at[1, r], at[0, r + 1]) for r in (1, 2, 3, 4)]
+    assert clique_lower_bound(np.array(ls), _xyz(xy)) == 5
+    mirrored = [(a, c, b) for a, b, c in ls[:64]]  # the same triples: the bound does not depend on vertex order
+    assert clique_lower_bound(np.array(mirrored), _xyz(xy)) == 4
+    tri_xy = np.array([(c + 0.5 * (r % 2), r * np.sqrt(3) / 2) for r in range(8) for c in range(8)]) * 0.6
+    units = site_triples(tri_xy, 0.6 + 1e-9)
+    k = clique_lower_bound(units, _xyz(tri_xy))
+    assert (k ** 3 + 2 * k) // 3 >= len(units) > ((k - 1) ** 3 + 2 * (k - 1)) // 3
