@@ -29,7 +29,7 @@ import serial
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from planner.firmware.image import config_image  # noqa: E402
-from planner.flash.flasher import flash_driver, sign_image  # noqa: E402
+from planner.flash.flasher import flash_driver  # noqa: E402
 from planner.flash.link import Link  # noqa: E402
 from planner.flash.sim import protocol_sim  # noqa: E402
 from planner.flash.wire import BEGIN_REQUEST, VERIFY_REPLY, WRITE_HEAD, Command, Hello  # noqa: E402
@@ -62,10 +62,9 @@ def bulk(baud: int) -> None:
 def bus(n: int, baud: int) -> None:
     port = serial.serial_for_url(f"sim://?drivers={n}&paced=1&key={KEY.hex()}", baudrate=baud, timeout=0.1)
     link = Link(port, baud)
-    images = [sign_image(config_image(f"L{k:04d}", k, "0111000110011010", 12600.0, "0123456789abcdef"), KEY)
-              for k in range(1, n + 1)]
+    images = [config_image(f"L{k:04d}", k, "0111000110011010", 12600.0, "0123456789abcdef") for k in range(1, n + 1)]
     t0 = time.perf_counter()
-    results = [flash_driver(link, k, image) for k, image in enumerate(images, 1)]
+    results = [flash_driver(link, k, image, KEY) for k, image in enumerate(images, 1)]  # signed per driver
     dt = time.perf_counter() - t0
     ok = sum(r.verified for r in results)
     payload = sum(len(i) for i in images)

@@ -88,6 +88,10 @@ MAX_LUMINAIRES = 100_000
 MAX_OBSERVED_LEDS = 2_000
 """Most LEDs one observation file may list: more than any photo shows whole."""
 
+MAX_IMAGE_VERSION = 1_000_000
+"""Highest image version the planner writes or vlp-flash signs: a version near 2^32 would leave a
+driver no newer version to move to (docs/flashing.md); a million re-plans leave room enough."""
+
 MAX_MCU_CLOCK_HZ = 1e9
 """Fastest driver microcontroller clock accepted [Hz]: the header's constants are 32-bit (``UL`` on an AVR)."""
 

@@ -121,7 +121,8 @@ def _addresses(plan: PlanFile, path: str | None) -> dict[str, int]:
 def plan_image(doc_path: Path, entry: Entry, digest: str) -> bytes:
     """The unsigned image the plan gives ``entry``, at the version of its file on disk; :class:`InputError`
     if the file is missing, damaged, of another plan, over the version bound, or differs in any byte."""
-    from planner.firmware.image import MAX_IMAGE_VERSION, config_image, parse_config_image
+    from planner.defaults import MAX_IMAGE_VERSION
+    from planner.firmware.image import config_image, parse_config_image
     from planner.firmware.render import IMAGE_FILE, file_name
 
     path = doc_path.parent / "firmware" / file_name(entry.name) / IMAGE_FILE
@@ -170,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json and not (args.bus or args.dry_run):
         raise UsageError("--json needs --bus or --dry-run: interactive mode talks to the installer on this terminal")
     say = sys.stderr if args.json else sys.stdout  # with --json, stdout carries the JSON document alone
-    from planner.firmware.image import MAX_IMAGE_VERSION
+    from planner.defaults import MAX_IMAGE_VERSION
 
     if args.image_version is not None and args.image_version > MAX_IMAGE_VERSION:
         raise UsageError(f"--image-version {args.image_version:,}: vlp-flash signs versions up to "

@@ -15,6 +15,7 @@ from planner.defaults import (
     ERROR_POSES_PER_M2,
     LINE_CODE_NAMES,
     LOCATE_METHODS,
+    MAX_IMAGE_VERSION,
     MAX_LUMINAIRES,
     MAX_MCU_CLOCK_HZ,
     MAX_POSES_PER_M2,
@@ -88,8 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--mcu-clock-hz", type=cli.at_most(MAX_MCU_CLOCK_HZ), default=16e6, metavar="HZ",
                    help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6, "
                         "at most 1e9)")
-    g.add_argument("--image-version", type=cli.positive_int, default=1, metavar="N",
-                   help="version written into every configuration image; drivers refuse older ones (default 1)")
+    g.add_argument("--image-version", type=cli.count_up_to(MAX_IMAGE_VERSION), default=1, metavar="N",
+                   help=f"version written into every configuration image, at most {MAX_IMAGE_VERSION:,}; drivers "
+                   "refuse older ones (default 1)")
     g.add_argument("--no-firmware", action="store_true", help="do not write OUTDIR/firmware/")
     g = p.add_argument_group("output")
     g.add_argument("--no-map", action="store_true", help="do not draw map.png, coverage.png and error.png")

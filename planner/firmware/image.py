@@ -10,15 +10,13 @@ from __future__ import annotations
 import struct
 import zlib
 
+from planner.defaults import MAX_IMAGE_VERSION
 from planner.errors import InputError, UsageError
 
 IMAGE_MAGIC = b"VLPC"
 IMAGE_FORMAT_VERSION = 1
 NAME_BYTES = 32
 MAX_IMAGE_CHIPS = 512  # the image's 64-byte chip area
-MAX_IMAGE_VERSION = 1_000_000
-"""Highest image version the planner writes or vlp-flash signs: a version near 2^32 would leave a
-driver no newer version to move to (docs/flashing.md); a million re-plans leave room enough."""
 # magic, format version, header length, total length | name, id, chip rate [mHz], chip count,
 # reserved | chips | image version, plan hash | signature | CRC-32 (docs/firmware.md has offsets)
 _HEADER = struct.Struct("<4sHHI")

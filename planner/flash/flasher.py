@@ -19,8 +19,9 @@ import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+from planner.defaults import MAX_IMAGE_VERSION
 from planner.errors import PlannerError
-from planner.firmware.image import CRC_OFFSET, MAX_IMAGE_VERSION, SIGNATURE_OFFSET, config_image, parse_config_image
+from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash.keys import driver_key
 from planner.flash.link import Link, LinkError
 from planner.flash.wire import (
