@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 import serial
 
+from conftest import ROOT
 from planner.cli.flash import console_main, shown_port
 from planner.errors import UsageError
 from planner.firmware.image import CRC_OFFSET, MAX_IMAGE_VERSION, SIGNATURE_OFFSET, config_image, parse_config_image
@@ -26,7 +27,6 @@ from planner.flash.link import Link
 from planner.flash.sim import protocol_sim
 from planner.flash.sim.driver import Flash, SimulatedDriver
 
-ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
 NAMES32 = [f"R{r:02d}C{c:02d}" for r in range(1, 5) for c in range(1, 9)]  # grid-32 in plan order
