@@ -16,14 +16,50 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from planner._files import load_json, write_text_atomically
+from planner._schema import Count, Text, validation_message
 from planner.errors import InputError, UsageError
 from planner.flash.flasher import FlashResult
 
 FORMAT = "vlp-asbuilt/1"
 HOLDS_IMAGE = ("flashed", "current", "verified")
 """Statuses meaning the driver runs this plan's image (with ``verified`` true)."""
+
+
+class _Proof(BaseModel):
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+    driver_serial: Text
+    image_version: Count = 0
+
+
+class _Entry(BaseModel):
+    """One luminaire's record; fields older journals lack take their defaults, unknown ones are kept."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+    id: Annotated[Count, Field(ge=1)]
+    where: Text = ""
+    driver_serial: Text = ""
+    status: Literal["flashed", "current", "verified", "failed"]
+    verified: Annotated[bool, Strict()] = False
+    image_sha256: Text = ""
+    image_version: Count = 0
+    active_version: Count = 0
+    active_sha256: Text = ""
+    message: Text = ""
+    time: Text = ""
+    last_verified: _Proof | None = None
+
+
+class _JournalFile(BaseModel):
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+    luminaires: dict[str, _Entry] = {}
 
 
 class Journal:
@@ -49,12 +85,12 @@ class Journal:
         if doc.get("plan_hash") != self.plan_hash:
             raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan "
                              f"({self.plan_hash}); give another --journal for a new plan")
-        entries = doc.get("luminaires", {})
-        if not isinstance(entries, dict) or not all(isinstance(k, str) and isinstance(v, dict)
-                                                    for k, v in entries.items()):
-            raise InputError(f"{self.path}: luminaires must map each name to its record; the journal was "
-                             "edited or damaged: move it away to start a new one")
-        return dict(entries)
+        try:
+            checked = _JournalFile.model_validate(doc, strict=True)
+        except ValidationError as exc:
+            raise InputError(f"{self.path}: {validation_message(exc)}; the journal was edited or damaged: move it "
+                             "away to start a new one") from None
+        return {name: entry.model_dump(exclude_unset=True) for name, entry in checked.luminaires.items()}
 
     def check_writable(self) -> None:
         """Refuse (before anything is flashed) a journal that could not be written: a missing or read-only folder."""
