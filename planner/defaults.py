@@ -88,6 +88,9 @@ MAX_LUMINAIRES = 100_000
 MAX_OBSERVED_LEDS = 2_000
 """Most LEDs one observation file may list: more than any photo shows whole."""
 
+MAX_PLAN_POSES = 50_000_000
+"""Most camera poses one run samples unless ``--max-poses`` says otherwise (about 20 GB, 6 min: planner/budget.py)."""
+
 MAX_IMAGE_VERSION = 1_000_000
 """Highest image version the planner writes or vlp-flash signs: a version near 2^32 would leave a
 driver no newer version to move to (docs/flashing.md); a million re-plans leave room enough."""

@@ -18,7 +18,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from planner import __version__
-from planner.defaults import CONGRUENCE_TOLERANCE_M, INSTALL_TOLERANCE_M, MAX_POSES_PER_M2, MAX_SEED, POSES_PER_M2
+from planner.defaults import (
+    CONGRUENCE_TOLERANCE_M,
+    INSTALL_TOLERANCE_M,
+    MAX_PLAN_POSES,
+    MAX_POSES_PER_M2,
+    MAX_SEED,
+    POSES_PER_M2,
+)
 from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
@@ -102,6 +109,9 @@ def add_verify_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--poses-per-m2", type=at_most(MAX_POSES_PER_M2), default=POSES_PER_M2, metavar="N",
                    help=f"camera poses sampled per square metre of floor (default {POSES_PER_M2:g}, "
                    f"at most {MAX_POSES_PER_M2:g})")
+    g.add_argument("--max-poses", type=count_up_to(10**11), default=None, metavar="N",
+                   help=f"most camera poses the run may sample in all (default {MAX_PLAN_POSES:,}, fewer if the "
+                   "largest sample would not fit in the memory available); refused beyond, before any work")
     g.add_argument("--tolerance", type=positive_float, default=CONGRUENCE_TOLERANCE_M, metavar="M",
                    help=f"triangles whose sides differ by less than this look alike to the receiver [m] "
                    f"(default {CONGRUENCE_TOLERANCE_M:g})")

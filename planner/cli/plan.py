@@ -121,6 +121,11 @@ def main(argv: list[str] | None = None) -> int:
     read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius)
     cli.progress(f"reading {args.layout}")
     layout = read_layout(args.layout, args.leds, read_opts)
+    from planner.budget import check_work, plan_work
+
+    work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
+                     poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
+    check_work(work, args.max_poses)
     cli.progress(f"planning {len(layout.luminaires)} luminaires")
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, cli.camera_from_args(args), not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,

@@ -47,6 +47,9 @@ def main(argv: list[str] | None = None) -> int:
     from planner.verify.verify import check_window_set, side_bound, verify_plan
 
     plan = load_plan(args.plan)
+    from planner.budget import check_work, verify_work
+
+    check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     xyz, radii, ids = plan.xyz, plan.radii, plan.ids
     camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
     result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,

@@ -135,6 +135,12 @@ def _protected(sampled: np.ndarray, xyz: np.ndarray, radii: np.ndarray, toleranc
     return np.unique(np.sort(np.vstack([sampled, extra]), axis=1), axis=0), bound
 
 
+def design_per_m2(per_m2: float, floor_m2: float) -> float:
+    """Density of the sampled design (no complete proof) [1/m^2]: five times the verification's, at least
+    :data:`DESIGN_PER_M2`, at most :data:`DESIGN_MAX_POSES` in all but never under twice the verification's."""
+    return min(max(5 * per_m2, DESIGN_PER_M2), max(DESIGN_MAX_POSES / max(floor_m2, 1e-6), 2 * per_m2))
+
+
 def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
                    proof: Proof, *, seed: int, per_m2: float, tolerance_m: float,
                    observations: dict) -> tuple[Assignment, Verification]:
@@ -220,8 +226,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     n = len(xyz)
     area = working_area(xyz[:, :2], outline)
     floor_m2 = max(area_m2(area), 1e-6)
-    design_density = min(max(5 * per_m2, DESIGN_PER_M2), max(DESIGN_MAX_POSES / floor_m2, 2 * per_m2))
-    design = design_windows(xyz, radii, outline, camera, per_m2=design_density, seed=seed + 1,
+    design = design_windows(xyz, radii, outline, camera, per_m2=design_per_m2(per_m2, floor_m2), seed=seed + 1,
                             tolerance_m=tolerance_m)
     windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
     others, first = None, windows
