@@ -13,7 +13,6 @@ configuration), 1 bad input, 2 usage (missing, busy, unknown or lost port).
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import sys
@@ -21,7 +20,6 @@ import urllib.parse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from planner._files import read_text
 from planner.cli import common as cli
 from planner.errors import ExitCode, InputError, UsageError
 
@@ -104,20 +102,6 @@ def _targets(plan: PlanFile, args) -> list[Entry]:
     return [lums[n] for n in args.names] if args.names else list(plan.luminaires)
 
 
-def _addresses(plan: PlanFile, path: str | None) -> dict[str, int]:
-    if not path:
-        return {e.name: k + 1 for k, e in enumerate(plan.luminaires)}
-    out = {}
-    text = read_text(path, "bus map", "no such bus map (--bus-map)")
-    for n, row in enumerate(csv.reader(text.splitlines()), 1):
-        if not row or row[0].startswith("#") or row[0] == "name":
-            continue
-        if len(row) != 2 or not row[1].strip().isdigit() or not 1 <= int(row[1]) <= 0xFFFE:
-            raise InputError(f"{path}: line {n}: expected 'name,address' with address 1..65534")
-        out[row[0].strip()] = int(row[1])
-    return out
-
-
 def plan_image(doc_path: Path, entry: Entry, digest: str) -> bytes:
     """The unsigned image the plan gives ``entry``, at the version of its file on disk; :class:`InputError`
     if the file is missing, damaged, of another plan, over the version bound, or differs in any byte."""
@@ -190,7 +174,9 @@ def main(argv: list[str] | None = None) -> int:
     targets = _targets(plan, args)
     key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
     images = {e.name: plan_image(doc_path, e, digest) for e in targets}
-    where = _addresses(plan, args.bus_map) if args.bus else {}
+    from planner.flash.bus_map import read_bus_map
+
+    where = read_bus_map(plan, args.bus_map) if args.bus else {}
     if args.bus and (absent := [e.name for e in targets if e.name not in where]):
         raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
     journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest)

@@ -1,4 +1,4 @@
-"""The as-built journal reader: entries are checked field by field, old journals still read."""
+"""The as-built journal and the bus map readers: entries checked field by field, old journals still read, one address per driver."""
 
 from __future__ import annotations
 
@@ -46,3 +46,37 @@ def test_a_damaged_entry_is_one_line_naming_its_field(tmp_path, change, where):
     message = str(err.value)
     assert message.startswith(f"{path}: {where}: ") and "move it away to start a new one" in message
     assert "\n" not in message
+
+
+def _plan(names):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(luminaires=[SimpleNamespace(name=n) for n in names])
+
+
+@pytest.mark.parametrize("text, message", [
+    ("A,1\nB,1\n", "line 2: address 1 is already 'A''s; two drivers on one bus need two addresses"),
+    ("A,1\nA,2\n", "line 2: 'A' is mapped twice"),
+    ("A,0\n", "line 1: address: must be greater than or equal to 1 (got '0')"),
+    ("A,65535\n", "line 1: address: must be less than or equal to 65534"),
+    ("A,x\n", "line 1: address: must be a valid integer"),
+    ("A,1,2\n", "line 1: expected 'name,address'"),
+    (",3\n", "line 1: name: must have at least 1 character"),
+])
+def test_a_bus_map_maps_each_luminaire_to_one_address_of_its_own(tmp_path, text, message):
+    from planner.flash.bus_map import read_bus_map
+
+    path = tmp_path / "bus.csv"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        read_bus_map(_plan("AB"), str(path))
+    assert str(err.value).startswith(f"{path}: {message}"), str(err.value)
+
+
+def test_a_good_bus_map_and_the_default_plan_order(tmp_path):
+    from planner.flash.bus_map import read_bus_map
+
+    path = tmp_path / "bus.csv"
+    path.write_text("# drivers of floor 2\nname,address\nB, 7\nA,12\n")
+    assert read_bus_map(_plan("AB"), str(path)) == {"B": 7, "A": 12}
+    assert read_bus_map(_plan("AB"), None) == {"A": 1, "B": 2}
