@@ -9,9 +9,10 @@ from hypothesis import strategies as st
 from conftest import grid_xy, hex_xy, poisson_xy
 from planner.camera import Camera, project_discs
 from planner.verify import proof as wp
+from planner.verify.envelope import Envelope, envelope
 from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area
 
-ENV = wp.Envelope(ceiling_m=2.5, near_m=1.0, far_m=2.0, tilt_rad=math.radians(40), inscribed_rad=math.radians(19.44),
+ENV = Envelope(ceiling_m=2.5, near_m=1.0, far_m=2.0, tilt_rad=math.radians(40), inscribed_rad=math.radians(19.44),
                   corner_rad=math.radians(30.46), disc_rad=math.radians(5.74), install_m=0.03)
 
 
@@ -85,7 +86,7 @@ def test_hull_depth_matches_the_support_function_over_many_directions():
 
 def test_the_envelope_of_the_default_camera():
     xyz = np.column_stack([grid_xy(4, 4, 0.5, 0.5), np.full(16, 2.5)])
-    env = wp.envelope(Camera(), xyz, np.full(16, 0.1), 0.03)
+    env = envelope(Camera(), xyz, np.full(16, 0.1), 0.03)
     assert math.isclose(env.near_m, 1.0) and math.isclose(env.far_m, 2.0)
     assert math.isclose(math.degrees(env.inscribed_rad), 19.439, abs_tol=1e-3)
     assert math.isclose(env.disc_m, 1.0 * math.sin(env.inscribed_rad - math.asin(0.1)))
@@ -148,7 +149,7 @@ def test_on_larger_sites_where_the_tests_exclude_most_triples_no_exact_window_is
         shift *= 0.03 * rng.uniform(0, 1, (len(xy), 1)) / np.linalg.norm(shift, axis=1, keepdims=True)
         installed = drawn + np.column_stack([shift, np.zeros(len(xy))])
         radii = np.full(len(xy), 0.1)
-        triangles = wp.possible_windows(drawn, radii, wp.envelope(cam, drawn, radii, 0.03), budget=10**7, pair_budget=10**7)
+        triangles = wp.possible_windows(drawn, radii, envelope(cam, drawn, radii, 0.03), budget=10**7, pair_budget=10**7)
         everything = wp.triples_of_pairs(np.column_stack(np.triu_indices(len(xy), 1)), len(xy))
         assert len(triangles) < len(everything)  # the tests do exclude
         proved = {tuple(t) for t in triangles.tolist()}

@@ -10,7 +10,7 @@ from planner.camera import Camera
 from planner.layout.model import Layout, Luminaire, area_m2
 from planner.pipeline import PlanOptions, make_plan, read_layout
 from planner.plan_file import load_plan
-from planner.verify.proof import envelope
+from planner.verify.envelope import envelope
 from planner.verify.verify import AMBIGUOUS, classify, observe_site
 from planner.verify.window_set import empty_triangles, window_superset
 from planner.verify.windows import POSES_PER_M2, find_windows, sample_poses, working_area
