@@ -26,13 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from planner.camera import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire, check_layout  # noqa: E402
 from planner.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
-
-
-def lattice_site(n: int) -> Layout:
-    cols = 2 ** math.ceil(math.log2(math.sqrt(n)))
-    cols = cols if n % cols == 0 else math.ceil(math.sqrt(n))
-    lums = tuple(Luminaire(f"L{k:06d}", (k % cols) * 0.5, (k // cols) * 0.5, 2.5) for k in range(n))
-    return Layout(lums, source_path=f"lattice-{n}.yaml")
+from planner.studies.efficiency import lattice_layout  # noqa: E402
 
 
 def irregular_site(n: int, seed: int = 0) -> Layout:
@@ -82,7 +76,7 @@ def main() -> None:
     print(f"# {platform.node()} {platform.processor() or platform.machine()}, {platform.python_version()}, "
           f"{time.strftime('%Y-%m-%d')}")
     for n in args.sizes:
-        bench(lattice_site(n), "lattice", n <= 20000, args)
+        bench(lattice_layout(n), "lattice", n <= 20000, args)
     for n in args.sizes:
         if n <= 10000:
             bench(irregular_site(n), "irregular", n <= 20000, args)

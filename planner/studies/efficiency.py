@@ -45,7 +45,7 @@ def _columns(n: int) -> int:
 
 
 def lattice_layout(n: int, pitch_m: float = PITCH_M) -> Layout:
-    """``n`` luminaires on square-ish lattice sites of ``pitch_m`` [m], row by row (as ``benchmarks/run.py``),
+    """``n`` luminaires on square-ish lattice sites of ``pitch_m`` [m], row by row (``benchmarks/run.py`` plans these),
     in :func:`_columns` columns (the last row may be partial)."""
     cols = _columns(n)
     lums = tuple(Luminaire(f"L{k:06d}", (k % cols) * pitch_m, (k // cols) * pitch_m, 2.5) for k in range(n))
