@@ -23,7 +23,7 @@ def read_camera(path: str | Path) -> Camera:
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a mapping of camera fields ({', '.join(CameraFields.model_fields)})")
     try:
-        return CameraFields.model_validate(doc).camera()
+        return CameraFields.model_validate(doc).to_camera()
     except ValidationError as exc:
         known = f"; known: {', '.join(CameraFields.model_fields)}" if exc.errors()[0]["type"] == "extra_forbidden" else ""
         raise InputError(f"{path}: {validation_message(exc)}{known}") from None

@@ -117,7 +117,7 @@ class CameraFields(BaseModel):
                 raise ValueError(f"{name} {value:g} lies outside the {self.width_px} x {self.height_px} px image")
         return self
 
-    def camera(self) -> Camera:
+    def to_camera(self) -> Camera:
         from planner.camera import Camera
 
         return Camera.from_dict(self.model_dump(exclude_none=True))
@@ -229,7 +229,7 @@ class PlanFile(_Section):
 
     def camera_model(self) -> Camera:
         """The camera the plan was made for."""
-        return self.camera.camera()
+        return self.camera.to_camera()
 
     def document(self) -> dict:
         """The plan as a plain mapping (what templates see), with the keys this version does not read."""
