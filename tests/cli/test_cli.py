@@ -185,18 +185,19 @@ def test_outputs_do_not_depend_on_the_hash_seed(tmp_path):
 def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_path):
     import numpy as np
 
-    rng = np.random.default_rng(0)  # a 16 x 16 lattice jittered by up to 0.3 pitch: no longer a lattice
-    k = np.arange(256)
-    pts = 0.5 * (np.stack([k % 16, k // 16], 1) + rng.uniform(-0.3, 0.3, (256, 2)))
+    rng = np.random.default_rng(0)  # a 10 x 10 lattice jittered by up to 0.3 pitch: no longer a lattice
+    k = np.arange(100)
+    pts = 0.5 * (np.stack([k % 10, k // 10], 1) + rng.uniform(-0.3, 0.3, (100, 2)))
     layout = write(tmp_path, "jitter.csv", "x,y\n" + "".join(f"{x:.4f},{y:.4f}\n" for x, y in pts))
+    quick = ["--no-report", "--no-map", "--error-poses-per-m2", "0"]  # what is checked is the plan and the exit
     # The pair rule protects neighbouring pairs; here some triangle that may be a window reads like another.
-    result = run([str(layout), "-o", str(tmp_path / "out"), "--scheme", "paper"], cwd=ROOT)
+    result = run([str(layout), "-o", str(tmp_path / "out"), "--scheme", "paper", *quick], cwd=ROOT)
     assert result.returncode == 3, result.stderr
     assert "may be windows read like other luminaires under the paper scheme" in result.stderr
     plan = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
     w = plan["verification"]["window_set"]
     assert w["read_alike"] > 0 and w["first_conflicts"] and not w["proved"]
-    auto = run([str(layout), "-o", str(tmp_path / "auto"), "--json"], cwd=ROOT)
+    auto = run([str(layout), "-o", str(tmp_path / "auto"), "--json", *quick], cwd=ROOT)
     assert auto.returncode == 0  # auto keeps a scheme that verifies
     v = json.loads(auto.stdout)["verification"]
     assert v["ambiguous"] == 0 and v["window_set"]["read_alike"] == 0
