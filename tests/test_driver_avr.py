@@ -38,6 +38,7 @@ from planner.flash.avr.runner import AvrBus
 from planner.flash.avr.trace import read_light
 from planner.flash.keys import driver_key
 from planner.flash.link import Link, LinkError
+from planner.flash.sim.driver import SimulatedDriver
 from planner.flash.wire import (
     BEGIN_REPLY,
     BEGIN_REQUEST,
@@ -366,10 +367,11 @@ def test_a_trace_without_whole_chips_is_one_clear_error(plans, tmp_path):
 
 
 # Done-when (e): bytes corrupted on the line are refused by the firmware's CRC.
-def _answers(port: serial.Serial, wait_s: float = 0.06) -> list[Packet]:
+def _answers(port: serial.Serial, wait_s: float = 0.06, enough: int = 0) -> list[Packet]:
+    """The packets that arrive within ``wait_s`` [s] (sooner once ``enough`` have, if above 0)."""
     deframer, packets, deadline = Deframer(), [], time.monotonic() + wait_s
     port.timeout = 0.01  # Link leaves its last wait here
-    while time.monotonic() < deadline:
+    while time.monotonic() < deadline and not 0 < enough <= len(packets):
         for frame in deframer.feed(port.read(max(1, port.in_waiting))):
             try:
                 packets.append(decode(frame))
@@ -401,3 +403,88 @@ def test_corrupted_line_bytes_are_never_acted_on(plans, tmp_path):
         assert staged == 128  # none of the damaged WRITEs was executed
         assert WRITE_REPLY.unpack(link.request(1, Command.WRITE, tail, driver_s=0.5).payload) == (len(image),)
     assert frames == 60
+
+
+# The firmware against its reference model, request for request.
+def test_firmware_answers_as_the_python_model_does(plans, tmp_path):
+    """Seeded sessions of valid, malformed, repeated and refused requests, with reboots, sent to the firmware and
+    to SimulatedDriver set up alike (serial, slot size, max block, block time): the same answers, byte for byte
+    (error messages aside, which are informative only), and every outcome of the protocol among them."""
+    rng = random.Random(11)
+    serial_ = "AVR-000001"
+    own = driver_key(KEY, serial_)
+    base = _config(plans, "a", "R01C01")
+    images = [_signed(_image(base, v, luminaire_id=base["id"] + k), own) for v, k in ((1, 0), (2, 0), (2, 1), (3, 0),
+                                                                                      (5, 0), (4, 0))]
+    damaged = bytearray(images[5])
+    damaged[70] ^= 1  # CRC now wrong
+    images += [_signed(_image(base, 6), driver_key(KEY, "AVR-000002")), _image(base, 6), bytes(damaged),
+               bytes(range(200))]
+    model = SimulatedDriver(1, serial_, KEY, slot_size=256, max_block=128, block_write_us=435_200)
+    outcomes: dict[str, int] = {}
+    with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.01) as port:
+        seq, staged, last = 0, 0, Packet(1, 0, 0, Command.HELLO)
+
+        def both(packet: Packet) -> None:
+            nonlocal staged, last
+            last = packet
+            line = encode(packet)
+            expected = [decode(f) for f in Deframer().feed(model.receive(line))]
+            port.write(line)
+            got = _answers(port, 1.0 if expected else 0.08, enough=len(expected))
+            assert [_comparable(p) for p in got] == [_comparable(p) for p in expected], packet
+            for answer in expected:
+                name = Status(answer.payload[0]).name if answer.is_error else Command(answer.command).name
+                outcomes[name] = outcomes.get(name, 0) + 1
+                if answer.command in (Command.BEGIN, Command.WRITE) and not answer.is_error:
+                    staged = struct.unpack_from("<I", answer.payload)[0]
+                elif answer.is_error and answer.payload[0] == Status.OFFSET:
+                    staged = struct.unpack_from("<I", answer.payload, 1)[0]
+
+        def request(command: int, payload: bytes = b"", address: int = 1) -> None:
+            nonlocal seq
+            seq = (seq + 1) & 0xFF
+            both(Packet(address, 0, seq, command, payload))
+
+        def noise(image: bytes) -> None:
+            """Now and then: a retry, a reboot, a wrong or malformed request."""
+            roll = rng.random()
+            if roll < 0.08:
+                both(last)  # a retry: same seq, same command
+            elif roll < 0.11:
+                bus.power_cut(1)  # between requests: both lose RAM, keep their memory
+                model.reset()
+                time.sleep(0.15)
+                if rng.random() < 0.7:  # and the host resumes: what was staged survives in the EEPROM
+                    request(Command.BEGIN, BEGIN_REQUEST.pack(len(image), struct.unpack_from("<I", image, 120)[0],
+                                                              hashlib.sha256(image).digest(), 0))
+            elif roll < 0.16:
+                offset = rng.choice([max(0, staged - 40), staged + 8, rng.randrange(len(image))])
+                request(Command.WRITE, WRITE_HEAD.pack(offset) + image[offset:offset + rng.randrange(130)])
+            elif roll < 0.20:
+                request(rng.choice([Command.HELLO, Command.VERIFY, Command.COMMIT, 9]), rng.choice([b"", b"\x01"]),
+                        rng.choice([1, 0xFFFF, 2]))
+
+        order = [images[k] for k in (0, 1, 2, 3, 4, 5)] + images[6:] + rng.sample(images, len(images)) * 2
+        for image in order:
+            for _ in range(rng.choice([1, 1, 2])):  # a second BEGIN: a resume, or a restart
+                length = rng.choice([len(image)] * 10 + [0, 257])
+                request(Command.BEGIN, BEGIN_REQUEST.pack(length, struct.unpack_from("<I", image, 120)[0],
+                                                          hashlib.sha256(image).digest(), rng.choice([0] * 4 + [1, 2])))
+                noise(image)
+                while staged < len(image) and rng.random() < 0.9:
+                    request(Command.WRITE, WRITE_HEAD.pack(staged) + image[staged:staged + rng.choice([128, 128, 40])])
+                    noise(image)
+            if rng.random() < 0.7:
+                request(Command.VERIFY)
+            request(Command.COMMIT, hashlib.sha256(image).digest() if rng.random() < 0.9 else bytes(32))
+            noise(image)
+            request(Command.HELLO)
+    assert model.stats.repeats >= 5 and outcomes["COMMIT"] >= 3, outcomes
+    assert set(outcomes) >= {s.name for s in Status if s != Status.FLASH} | {c.name for c in Command}, outcomes
+
+
+def _comparable(packet: Packet) -> Packet:
+    """An answer without its error message: status and detail stay."""
+    return Packet(packet.address, packet.flags, packet.seq, packet.command,
+                  packet.payload[:5] if packet.is_error else packet.payload)

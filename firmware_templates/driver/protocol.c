@@ -251,7 +251,7 @@ static int16_t cmd_write(const uint8_t *in, uint16_t n, uint8_t *out)
     }
     offset = le32(in);
     size = n - 4u;
-    if (offset + size <= staged) {
+    if (offset <= staged && offset + size <= staged) { /* (offset first: no u32 wrap-around) */
         put32(out, staged); /* a retransmission: already there */
         return 4;
     }

@@ -139,13 +139,18 @@ class AvrBus:
         p = driver.process
         assert p is not None and p.stdin is not None and p.stdout is not None
         deframer, deadline = Deframer(), time.monotonic() + timeout_s
+        probes = answers = 0
+        next_probe = time.monotonic()
         while time.monotonic() < deadline:
-            p.stdin.write(encode(Packet(driver.address, 0, 0, Command.HELLO)))  # again every 0.5 s
-            ready, _, _ = select.select([p.stdout], [], [], min(0.5, max(0.0, deadline - time.monotonic())))
+            if not answers and time.monotonic() >= next_probe:  # again every 0.5 s until one is answered
+                p.stdin.write(encode(Packet(driver.address, 0, 0, Command.HELLO)))
+                probes, next_probe = probes + 1, time.monotonic() + 0.5
+            ready, _, _ = select.select([p.stdout], [], [], 0.05)
             data = os.read(p.stdout.fileno(), 4096) if ready else b""
             if ready and not data:
                 break  # the harness exited
-            if any(_decoded(f) is not None for f in deframer.feed(data)):
+            answers += sum(_decoded(f) is not None for f in deframer.feed(data))
+            if answers >= probes > 0:  # every probe answered (repeats from the seq cache): the line is clean
                 return
         raise UsageError(f"emulated driver {driver.serial} (address {driver.address}) did not answer at power-up "
                          f"within {timeout_s:g} s; run {self.harness} {self.firmware} {driver.eeprom_path} - by hand "
