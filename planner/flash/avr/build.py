@@ -104,15 +104,15 @@ class _Compile:
         proc = subprocess.run([*self.command, "-o", str(out)], capture_output=True, text=True)
         if proc.returncode != 0:
             first = next((line for line in proc.stderr.splitlines() if "error" in line), proc.stderr.strip()[:300])
-            raise ToolchainError(f"building the {self.what} failed: {first}")
+            hint = f"; install the headers and libraries with: apt-get install {APT_PACKAGES}" \
+                if "No such file" in first or "cannot find -l" in first else ""
+            raise ToolchainError(f"building the {self.what} failed: {first}{hint}")
 
 
 def build_firmware(build_dir: Path | None = None) -> Path:
     """The firmware ELF for the ATmega328P (``-Wall -Wextra -Werror``), built if not cached."""
     gcc = _tool("avr-gcc")
     src = firmware_dir()
-    if not Path("/usr/lib/avr/include/avr/io.h").is_file():
-        raise ToolchainError(f"avr-libc's headers are missing; install them with: apt-get install {APT_PACKAGES}")
     sources = [src / name for name in FIRMWARE_SOURCES]
     return _cached("driver.elf", sources + [src / name for name in FIRMWARE_HEADERS], AVR_FLAGS, build_dir,
                    _Compile([gcc, *AVR_FLAGS, *map(str, sources)], "driver firmware"))
