@@ -153,11 +153,11 @@ static void pace(avr_t *a, avr_cycle_count_t how_long)
 }
 
 /* simavr's own logger writes its chatter ("Loaded 8674 .text ...") to stdout, which is the line here:
- * errors go to stderr, the rest nowhere. */
+ * errors go to stderr, the rest (traces, the UART's console copy) nowhere. */
 static void log_to_stderr(avr_t *a, const int level, const char *format, va_list ap)
 {
     (void)a;
-    if (level <= LOG_ERROR) {
+    if (level == LOG_ERROR) {
         vfprintf(stderr, format, ap);
     }
 }
@@ -174,6 +174,7 @@ int main(int argc, char **argv)
     avr_io_t *io;
     uint8_t *eeprom;
     int fd;
+    uint32_t uart_flags;
     avr_cycle_count_t next_service = 16000, next_flush = 0; /* input waits 1 ms: the USART is set up by then */
 
     if (argc != 4) {
@@ -230,6 +231,8 @@ int main(int argc, char **argv)
                      "$enddefinitions $end\n");
         avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), 1), on_led, NULL);
     }
+    uart_flags = 0; /* no copy of the line on the console, no host sleep while the firmware polls UDRE */
+    avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &uart_flags);
     uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_uart_out, NULL);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon, NULL);
