@@ -225,8 +225,11 @@ def test_flash_four_emulated_drivers_and_read_their_light(plans, tmp_path):
         time.sleep(0.5)  # half a second of light after the last commit
     finally:
         sim.send_signal(signal.SIGTERM)
-        sim.wait(timeout=10)
+        _, err = sim.communicate(timeout=10)
     assert sim.returncode == 0
+    assert err.splitlines() == ["vlp-driver-sim: 4 emulated ATmega328P driver(s) at addresses 1..4 on one line, "
+                                f"EEPROM in {tmp_path / 'eeprom'}, LED traces in {tmp_path / 'trace'}; line rate "
+                                "250000 bit/s"]  # nothing from simavr
     frame_format = FrameFormat.from_plan(load_plan(plans / "a" / "plan.yaml"))
     for address, name in enumerate(names, start=1):
         config = _config(plans, "a", name)
