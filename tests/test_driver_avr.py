@@ -235,6 +235,18 @@ def test_flash_four_emulated_drivers_and_read_their_light(plans, tmp_path):
         config = _config(plans, "a", name)
         assert _plays(tmp_path / "trace" / f"{address}.vcd", [(frame_format, config)]) == config
     assert sorted(p.stat().st_size for p in (tmp_path / "eeprom").iterdir()) == [EEPROM_BYTES] * 4
+    again = subprocess.Popen([str(BIN / "vlp-driver-sim"), "--firmware", "avr", "--drivers", "4", "--key-file",
+                              str(plans / "key"), "--eeprom-dir", str(tmp_path / "eeprom")], stdout=subprocess.PIPE,
+                             stderr=subprocess.DEVNULL, text=True)
+    try:  # a restart keeps the EEPROMs: every driver still holds its image
+        assert again.stdout is not None
+        check = _flash(plans, "a", again.stdout.readline().strip(), tmp_path / "as-built.json", names, "--verify-only")
+        out, err = check.communicate(timeout=60)
+        assert check.returncode == 0, err
+        assert [d["status"] for d in json.loads(out)["drivers"]] == ["verified"] * 4
+    finally:
+        again.send_signal(signal.SIGTERM)
+        again.wait(timeout=10)
 
 
 # Done-when (c): power cuts at 20 seeded random moments while vlp-flash flashes.
