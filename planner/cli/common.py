@@ -180,25 +180,22 @@ def output_file(flag: str, value: str | None) -> Path | None:
 def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
     ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""
+    from planner.flash.keys import site_key_from
+
     if path:
         try:
             raw = Path(path).read_bytes()
         except OSError as exc:
             raise UsageError(f"--key-file {path}: cannot read ({exc.strerror or exc})") from None
-        try:
-            key = bytes.fromhex(raw.decode("ascii"))
-        except (UnicodeDecodeError, ValueError):
-            key = raw
+        where, from_file = f"--key-file {path}", True
     elif env and os.environ.get("VLP_SITE_KEY"):
-        try:
-            key = bytes.fromhex(os.environ["VLP_SITE_KEY"])
-        except ValueError:
-            raise UsageError("VLP_SITE_KEY must be hex digits") from None
+        raw, where, from_file = os.environ["VLP_SITE_KEY"].encode("utf-8", "surrogateescape"), "VLP_SITE_KEY", False
     else:
         raise UsageError("no site key: give --key-file FILE" + (" or set VLP_SITE_KEY (hex)" if env else ""))
-    if not 16 <= len(key) <= 64:
-        raise UsageError(f"the site key has {len(key)} bytes; it must have 16 to 64 (hex or raw)")
-    return key
+    try:
+        return site_key_from(raw, raw=from_file)
+    except ValueError as exc:
+        raise UsageError(f"{where}: {exc}") from None
 
 
 def one_line(text: str) -> str:

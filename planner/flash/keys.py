@@ -14,6 +14,25 @@ import hmac
 
 DRIVER_KEY_LABEL = b"VLP driver key v1\x00"
 DRIVER_KEY_BYTES = 32
+SITE_KEY_BYTES = (16, 64)
+"""Fewest and most bytes of a site key (docs/protocol.md)."""
+
+
+def site_key_from(data: bytes, *, raw: bool = True) -> bytes:
+    """The site key that ``data`` holds: hex digits (whitespace ignored), else (if ``raw``: a key file)
+    the bytes themselves; :class:`ValueError` unless it has 16 to 64 bytes. The one reading of a key,
+    for files, the environment and ``sim://`` URLs alike."""
+    try:
+        key = bytes.fromhex(data.decode("ascii"))
+    except (UnicodeDecodeError, ValueError):
+        if not raw:
+            raise ValueError("the site key must be hex digits (an even number of them)") from None
+        key = bytes(data)
+    low, high = SITE_KEY_BYTES
+    if not low <= len(key) <= high:
+        raise ValueError(f"the site key has {len(key)} bytes; it must have {low} to {high}"
+                         + (" (hex or raw)" if raw else f" ({2 * low} to {2 * high} hex digits)"))
+    return key
 
 
 def driver_key(site_key: bytes, serial: str) -> bytes:

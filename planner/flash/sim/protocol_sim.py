@@ -33,6 +33,7 @@ import serial
 from serial import SerialBase, SerialException
 from serial.serialutil import PortNotOpenError, to_bytes  # type: ignore[attr-defined]  # to_bytes: not in types-pyserial
 
+from planner.flash.keys import site_key_from
 from planner.flash.sim.bus import Faults, SimBus, SimConfigError, make_bus
 from planner.flash.wire import Command, WireError, decode
 
@@ -68,11 +69,9 @@ def bus_from_url(url: str) -> SimBus:
         except ValueError:
             raise SimUrlError(f"sim:// URL: {name}={one[name]!r} is not a whole number") from None
     try:
-        key = bytes.fromhex(one.get("key", ""))
-    except ValueError:
-        raise SimUrlError("sim:// URL: key must be the site key in hex") from None
-    if not 16 <= len(key) <= 64:
-        raise SimUrlError(f"sim:// URL: key of {len(key)} bytes; give the site key as 32 to 128 hex digits")
+        key = site_key_from(one.get("key", "").encode("utf-8", "surrogateescape"), raw=False)
+    except ValueError as exc:
+        raise SimUrlError(f"sim:// URL: key: {exc}") from None
     try:
         return make_bus(ints["drivers"], key, first_address=ints["first"], serial_prefix=one.get("prefix", "SIM-"),
                         flash_dir=one.get("flash") or None, slot_size=ints["slot_size"],

@@ -1,0 +1,46 @@
+"""Site keys read one way everywhere, and per-driver keys derived from them (docs/protocol.md)."""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+
+import pytest
+
+from planner.cli.common import site_key
+from planner.errors import UsageError
+from planner.flash.keys import driver_key, site_key_from
+from planner.flash.sim.protocol_sim import SimUrlError, bus_from_url
+
+KEY = bytes(range(32))
+
+
+def test_a_key_is_hex_with_any_whitespace_or_in_a_file_raw_bytes():
+    assert site_key_from(b"0001 0203\n0405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f\n") == KEY
+    assert site_key_from(KEY) == KEY  # raw bytes in a key file
+    with pytest.raises(ValueError, match="has 2 bytes; it must have 16 to 64 \\(hex or raw\\)"):
+        site_key_from(b"abcd")
+    with pytest.raises(ValueError, match="must be hex digits"):
+        site_key_from(KEY.hex()[:-1].encode(), raw=False)  # an odd count is not raw bytes in disguise
+
+
+def test_the_environment_and_sim_urls_take_hex_only(monkeypatch):
+    monkeypatch.setenv("VLP_SITE_KEY", KEY.hex())
+    assert site_key(None) == KEY
+    monkeypatch.setenv("VLP_SITE_KEY", KEY.hex()[:-1])
+    with pytest.raises(UsageError, match="VLP_SITE_KEY: the site key must be hex digits"):
+        site_key(None)
+    monkeypatch.setenv("VLP_SITE_KEY", "ab" * 8 + "zz" * 8)
+    with pytest.raises(UsageError, match="must be hex digits"):
+        site_key(None)
+    with pytest.raises(SimUrlError, match="sim:// URL: key: the site key has 2 bytes; it must have 16 to 64 "
+                                          "\\(32 to 128 hex digits\\)"):
+        bus_from_url("sim://?key=abcd")
+
+
+def test_each_driver_has_its_own_key_derived_from_the_site_key():
+    a, b = driver_key(KEY, "SIM-000001"), driver_key(KEY, "SIM-000002")
+    assert a == hmac.new(KEY, b"VLP driver key v1\x00SIM-000001", hashlib.sha256).digest() and a != b
+    assert a.hex().startswith("6eab083b")  # the worked example of docs/protocol.md
+    with pytest.raises(ValueError):
+        driver_key(KEY, "")
