@@ -32,7 +32,9 @@ from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
 
-LAYOUT_SUFFIXES = (".dxf", ".yaml", ".yml", ".csv")
+LAYOUT_SUFFIXES = (".dxf", ".ifc", ".yaml", ".yml", ".csv")
+DRAWING_SUFFIXES = (".dxf", ".ifc")
+"""Drawings whose failed read points to ``vlp-inspect``."""
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,8 @@ class ReadOptions:
     blocks: tuple[str, ...] = ()
     mount_height_m: float | None = None
     radius_m: float | None = None
+    room: str | None = None
+    storey: str | None = None
 
 
 @dataclass(frozen=True)
@@ -67,21 +71,47 @@ class PlanOptions:
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
-    """Read a DXF, YAML or CSV layout; with ``leds`` and only an outline, fill it."""
+    """Read a DXF, IFC, YAML or CSV layout; with ``leds`` and only an outline, fill it.
+
+    A drawing (DXF, IFC) that cannot be planned raises :class:`InputError` whose line ends
+    with a pointer to ``vlp-inspect``.
+    """
     path = Path(path)
     if path.suffix.lower() not in LAYOUT_SUFFIXES:
-        raise UsageError(f"{path}: unknown layout type {path.suffix!r}; give a .dxf, .yaml, .yml or .csv file")
+        raise UsageError(f"{path}: unknown layout type {path.suffix!r}; give a .dxf, .ifc, .yaml, .yml or .csv file")
     if not path.is_file():
         raise UsageError(f"{path}: no such file")
+    if path.suffix.lower() not in DRAWING_SUFFIXES:
+        return _read_layout(path, leds, options)
+    try:
+        return _read_layout(path, leds, options)
+    except InputError as exc:
+        from planner.layout.dxf import INSPECT_HINT
+
+        hint = INSPECT_HINT.format(path=path)
+        if hint in str(exc):
+            raise
+        raise InputError(f"{exc}; {hint}") from exc
+
+
+def _read_layout(path: Path, leds: int | None, options: ReadOptions) -> Layout:
     suffix = path.suffix.lower()
+    for flag, value, where in (("--room", options.room, ".dxf"), ("--storey", options.storey, ".ifc")):
+        if value is not None and suffix != where:
+            raise UsageError(f"{flag} is for {where} drawings, not {path.name}")
     if suffix == ".dxf":
         from planner.layout.dxf import read_dxf
 
         layout = read_dxf(
             path, units=options.units, preset=options.preset, layers=list(options.layers) or None,
             blocks=list(options.blocks) or None, mount_height_m=options.mount_height_m,
-            radius_m=options.radius_m, allow_outline_only=leds is not None,
+            radius_m=options.radius_m, allow_outline_only=leds is not None, expected=leds, room=options.room,
         )
+    elif suffix == ".ifc":
+        from planner.layout.ifc import read_ifc
+
+        layout = read_ifc(path, storey=options.storey, mount_height_m=options.mount_height_m,
+                          radius_m=options.radius_m, units=options.units)
     else:
         from planner.layout.tables import read_csv, read_yaml
 
@@ -206,7 +236,8 @@ class FirmwareOptions:
 
 def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
                   firmware: FirmwareOptions | None = FirmwareOptions(), with_report: bool = True) -> list[Path]:
-    """Write ``plan.yaml``, the annotated DXF, the maps, the site report and the firmware files into ``outdir``, atomically.
+    """Write ``plan.yaml``, the annotated DXF (and IFC, from an IFC model), the maps, the site report and the
+    firmware files into ``outdir``, atomically.
 
     Everything is written into a temporary directory beside ``outdir`` and moved
     into place at the end: on any error, no partial output is left. An existing
@@ -242,6 +273,11 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         is_dxf = source.suffix.lower() == ".dxf"
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, written.luminaires,
                             source_path=source if is_dxf else None, tool_version=__version__)
+        if source.suffix.lower() == ".ifc":
+            from planner.layout.ifc_annotate import write_annotated_ifc
+
+            write_annotated_ifc(stage / f"{source.stem}-vlp.ifc", plan.layout, written.luminaires,
+                                source_path=source, tool_version=__version__)
         if with_map:
             from planner.report.maps import render_coverage, render_error, render_map
 

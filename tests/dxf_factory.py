@@ -188,6 +188,119 @@ def circles_grid(
     return doc, _sorted(expected)
 
 
+LIGHT_POINT = "LIGHT POINT CONTROLLED BY TWO WAY SWITCH"
+
+
+def residential(z_noise: tuple[float, ...] = (9.9e-13, -1.5e-4), insunits: int = 4, cols: int = 4, rows: int = 3,
+                spacing_mm: float = 3000.0, unknown: int = 0) -> tuple[Drawing, np.ndarray]:
+    """A residential electrical layout as real ones are drawn (millimetres), with what misled the reader.
+
+    ``cols x rows`` ceiling lights, blocks ``LIGHT POINT CONTROLLED BY TWO WAY SWITCH`` on layer
+    ``E-LIGHTING`` with a 100 mm circle, Z = the ``z_noise`` values in turn. On the same layer: two-way
+    switches (two circles each), ceiling fans (a circle and blades), a wall light, an exit sign, a socket
+    and a PIR sensor, each with circles inside. Elsewhere: ``COLUMN`` blocks, ``_ClosedFilled`` arrows,
+    ``SATELLITE`` and ``CLAMP`` blocks, a circle on ``A-FLOR-TILED``. ``unknown`` adds that many blocks
+    of a meaningless name (``A$C1F2``) with a circle on the lighting layer, between the lights.
+    Expected: the lights only, at Z = 0 (no height in the drawing).
+    """
+    doc = new_drawing(insunits, "R2013")
+    for layer in ("E-LIGHTING", "A-COLUMN", "A-FLOR-TILED", "A-ANNO-DIMS", "E-EQPM"):
+        doc.layers.add(layer)
+    light = doc.blocks.new(LIGHT_POINT)
+    light.add_circle((0, 0), 100)
+    light.add_line((-100, -100), (100, 100))
+    switch = doc.blocks.new("TWO WAY SWITCH")
+    switch.add_circle((0, 0), 40)
+    switch.add_circle((120, 0), 40)
+    fan = doc.blocks.new("CEILING FAN")
+    fan.add_circle((0, 0), 150)
+    for angle in (0, 120, 240):
+        fan.add_line((0, 0), (600 * np.cos(np.radians(angle)), 600 * np.sin(np.radians(angle))))
+    for name in ("WALL LIGHT", "EXIT SIGN", "SOCKET 6A", "PIR SENSOR", "SATELLITE", "CLAMP", "COLUMN", "_ClosedFilled"):
+        doc.blocks.new(name).add_circle((0, 0), 80)
+    mystery = doc.blocks.new("A$C1F2")
+    mystery.add_circle((0, 0), 60)
+    msp = doc.modelspace()
+    expected = []
+    for k in range(cols * rows):
+        i, j = k % cols, k // cols
+        x, y = 1500 + i * spacing_mm, 1500 + j * spacing_mm
+        msp.add_blockref(LIGHT_POINT, (x, y, z_noise[k % len(z_noise)]), dxfattribs={"layer": "E-LIGHTING"})
+        expected.append((x / 1000, y / 1000, 0.0))
+        msp.add_blockref("TWO WAY SWITCH", (x + 1400, y - 1400, 1.2e-12), dxfattribs={"layer": "E-LIGHTING"})
+        if k % 2:
+            msp.add_blockref("CEILING FAN", (x + 1500, y, 0), dxfattribs={"layer": "E-LIGHTING"})
+        if k < unknown:
+            msp.add_blockref("A$C1F2", (x + 700, y + 700, 0), dxfattribs={"layer": "E-LIGHTING"})
+    for k, name in enumerate(("WALL LIGHT", "EXIT SIGN", "SOCKET 6A", "PIR SENSOR")):
+        msp.add_blockref(name, (k * 2000.0 + 700, 100.0, 0), dxfattribs={"layer": "E-LIGHTING"})
+    for k in range(6):
+        msp.add_blockref("COLUMN", (k * 4000.0, 9000.0), dxfattribs={"layer": "A-COLUMN"})
+        msp.add_blockref("_ClosedFilled", (k * 4000.0 + 500, 9500.0), dxfattribs={"layer": "A-ANNO-DIMS"})
+    msp.add_blockref("SATELLITE", (500.0, 9800.0), dxfattribs={"layer": "E-EQPM"})
+    msp.add_blockref("CLAMP", (900.0, 9800.0), dxfattribs={"layer": "E-EQPM"})
+    msp.add_circle((3000.0, 9800.0), 300, dxfattribs={"layer": "A-FLOR-TILED"})
+    return doc, _sorted(expected)
+
+
+def converted_panels(cols: int = 5, rows: int = 4, spacing_mm: float = 2400.0, offset_mm: float = 120.0
+                     ) -> tuple[Drawing, np.ndarray]:
+    """A DWG converted to DXF: ``$INSUNITS`` = metres over millimetre geometry, circle-less symbols.
+
+    Each luminaire is a 600 mm square panel ``LED PANEL 600`` (no circle) on ``E-LITE`` with its lamp
+    mark ``LED PANEL 600 MARK`` (two crossed lines) drawn ``offset_mm`` off the panel's base point.
+    Expected: one luminaire per panel, radius 0.3 m (half the panel), heights from Z = 2800 mm.
+    """
+    doc = new_drawing(6, "R2013")
+    doc.layers.add("E-LITE")
+    panel = doc.blocks.new("LED PANEL 600")
+    _rectangle(panel, 600, 600)
+    mark = doc.blocks.new("LED PANEL 600 MARK")
+    mark.add_line((-200, -200), (200, 200))
+    mark.add_line((-200, 200), (200, -200))
+    msp = doc.modelspace()
+    expected = []
+    for j in range(rows):
+        for i in range(cols):
+            x, y = 1200 + i * spacing_mm, 1200 + j * spacing_mm
+            msp.add_blockref("LED PANEL 600", (x, y, 2800), dxfattribs={"layer": "E-LITE"})
+            msp.add_blockref("LED PANEL 600 MARK", (x + offset_mm, y, 2800), dxfattribs={"layer": "E-LITE"})
+            expected.append(((x + offset_mm / 2) / 1000, y / 1000, 2.8))
+    return doc, _sorted(expected)
+
+
+FLOOR_ROOMS = {  # name -> (x0, y0, x1, y1) [m]: two offices and a corridor, 0.2 m walls between
+    "OFFICE 1": (0.0, 0.0, 10.0, 7.0),
+    "OFFICE 2": (10.2, 0.0, 20.2, 7.0),
+    "CORRIDOR": (0.0, 7.2, 20.2, 12.2),
+}
+
+
+def multi_room_floor(unit: str = "mm") -> Drawing:
+    """A floor plan of three rooms on ``A-WALL`` (each its own closed polyline, walls 0.2 m thick), a
+    column inside one, room names as TEXT, and 24 downlights (``DOWNLIGHT`` blocks) 2.5 m apart."""
+    per_m = 1.0 / {"m": 1.0, "mm": 0.001}[unit]
+    doc = new_drawing(INSUNITS[unit], "R2013")
+    for layer in ("A-WALL", "A-AREA-IDEN", "E-LITE"):
+        doc.layers.add(layer)
+    msp = doc.modelspace()
+    for name, (x0, y0, x1, y1) in FLOOR_ROOMS.items():
+        corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+        msp.add_lwpolyline([(x * per_m, y * per_m) for x, y in corners], close=True, dxfattribs={"layer": "A-WALL"})
+        msp.add_text(name, height=0.3 * per_m, dxfattribs={"layer": "A-AREA-IDEN",
+                                                            "insert": ((x0 + 1) * per_m, (y0 + 1) * per_m)})
+    c = 0.4 * per_m
+    msp.add_lwpolyline([(5 * per_m, 3 * per_m), (5 * per_m + c, 3 * per_m), (5 * per_m + c, 3 * per_m + c),
+                        (5 * per_m, 3 * per_m + c)], close=True, dxfattribs={"layer": "A-WALL"})
+    down = doc.blocks.new("DOWNLIGHT")
+    down.add_circle((0, 0), 0.08 * per_m)
+    for j in range(3):
+        for i in range(8):
+            msp.add_blockref("DOWNLIGHT", ((1.25 + 2.5 * i) * per_m, (1.5 + 2.5 * j + 0.7 * (j == 2)) * per_m, 0),
+                             dxfattribs={"layer": "E-LITE"})
+    return doc
+
+
 def corrupt_missing_endsec(src: str | Path, dst: str | Path) -> Path:
     """Copy a DXF, dropping the ENDSEC that closes its ENTITIES section.
 

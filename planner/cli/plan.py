@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
         "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
     )
-    p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .yaml/.yml or .csv")
+    p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .ifc, .yaml/.yml or .csv")
     p.add_argument("--leds", type=cli.count_up_to(MAX_LUMINAIRES), metavar="N",
                    help="expected luminaire count (a mismatch is an error); with only a room outline, "
                    "lay out N luminaires on a lattice inside it (at most 100,000)")
@@ -57,6 +57,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="mounting height [m] where the layout gives none (default 2.5)")
     g.add_argument("--radius", type=cli.positive_float, metavar="M",
                    help="LED radius [m] where the layout gives none (default 0.1)")
+    g.add_argument("--room", metavar="PATTERN",
+                   help="DXF: the room outline is the closed polylines whose layer, or the name written inside, "
+                   "matches PATTERN (fnmatch); default: the whole floor")
+    g.add_argument("--storey", metavar="NAME",
+                   help="IFC: the building storey whose light fixtures to plan (name or elevation in m)")
     g = p.add_argument_group("planning")
     g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
                    help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
@@ -118,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
                          if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
     t0 = time.perf_counter()
-    read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius)
+    read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius,
+                            args.room, args.storey)
     cli.progress(f"reading {args.layout}")
     layout = read_layout(args.layout, args.leds, read_opts)
     from planner.budget import check_work, plan_work

@@ -1,10 +1,11 @@
-"""Read luminaires and the room outline from a DXF drawing (DIALux, Revit, AutoCAD).
+"""Read luminaires and the room outline from a DXF drawing (DIALux, Revit, AutoCAD, converted DWG).
 
-Luminaires are INSERTs (MINSERT arrays included), CIRCLEs or POINTs whose layer or
-block name matches a preset's patterns; INSERTs that do not match are entered, so
-luminaires nested in other blocks are found with their composed transform. Every
-position is taken in WCS, converted to metres once (:mod:`planner.layout.dxf_units`
-decides the unit), parts drawn at one point are merged, and the result is a
+:mod:`planner.layout.dxf_scan` walks the model space and classifies every INSERT, CIRCLE
+and POINT by its names (:mod:`planner.layout.dxf_names`); this module turns the parts it
+took into luminaires: Z noise is no height, the unit is decided once
+(:mod:`planner.layout.dxf_units`), positions are converted to metres, parts drawn at one
+point are merged, with ``--leds N`` the one group of N is chosen among several, and the
+floor outline is joined from the rooms (:mod:`planner.layout.outline`). The result is a
 :class:`~planner.layout.model.Layout` with luminaires named ``L0001``... in plan order.
 ``docs/dxf.md`` describes the rules for users.
 """
@@ -12,9 +13,8 @@ decides the unit), parts drawn at one point are merged, and the result is a
 from __future__ import annotations
 
 import fnmatch
-import re
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
 
@@ -23,73 +23,29 @@ import numpy as np
 from ezdxf import recover
 from ezdxf.document import Drawing
 from ezdxf.lldxf.validator import is_binary_dxf_file, is_dwg_file, is_dxf_file
-from ezdxf.math import Matrix44, Vec3
+from matplotlib.path import Path as PolygonPath
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from planner.defaults import MAX_EXTENT_M, UNIT_TO_M
+from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
-from planner.layout.dxf_units import Figures, choose_unit
+from planner.layout.dxf_names import PRESETS, selector
+from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, scan
+from planner.layout.dxf_units import HEIGHT_RANGE_M, Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
+from planner.layout.outline import floor_outline
 
-__all__ = ["read_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
+__all__ = ["read_dxf", "scan_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
 
-_GENERIC = ("*LUM*", "*LITE*", "*LIGHT*", "*LAMP*", "*LED*")
-PRESETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "dialux": (("DLX_*LUM*",), ()),
-    "revit": (("E-LITE", "E-LITE-*"), ()),
-    "generic": (_GENERIC, _GENERIC),
-}
-"""Preset name -> (layer patterns, block-name patterns); ``auto`` is their union."""
-
-PRESET_EXCLUDE = ("*-SWCH*", "*SWITCH*", "*-CIRC*", "*-IDEN*", "*-NOTE*", "*-TEXT*", "*-DIMS*", "*-ANNO*")
-"""Layers/blocks the presets skip: switches, circuits and labels of the lighting layers."""
-
-OUTLINE_LAYERS = ("*WALL*", "*ROOM*", "*OUTLINE*", "A-AREA*", "DLX_*ROOM*")
-"""Layers whose closed polylines are room-outline candidates."""
+INSPECT_HINT = "vlp-inspect {path} lists what the drawing holds and what the reader took and why"
+"""Pointer printed after a failed read of a drawing."""
 
 MERGE_MIN_M = 0.05
 """Parts closer than this (or half the LED radius, if larger) are one luminaire [m]."""
 
-_MAX_DEPTH = 16  # block nesting depth followed; deeper (or cyclic) references are ignored
-_REVIT_APPID = "REVIT"
-
-
-def _match(name: str, patterns: tuple[str, ...]) -> bool:
-    upper = name.upper()
-    return any(fnmatch.fnmatchcase(upper, p.upper()) for p in patterns)
-
-
-@dataclass(frozen=True)
-class _Selector:
-    """Which layers and block names hold luminaires."""
-
-    layers: tuple[str, ...]
-    blocks: tuple[str, ...]
-    exclude: tuple[str, ...]
-    label: str
-
-    def matches(self, layer: str, block: str | None = None) -> bool:
-        names = [layer] if block is None else [layer, block]
-        if any(_match(n, self.exclude) for n in names):
-            return False
-        return _match(layer, self.layers) or (block is not None and _match(block, self.blocks))
-
-
-def _selector(preset: str, layers: list[str] | None, blocks: list[str] | None) -> _Selector:
-    key = preset.lower()
-    if key == "auto":
-        lay = tuple(dict.fromkeys(p for v in PRESETS.values() for p in v[0]))
-        blk = tuple(dict.fromkeys(p for v in PRESETS.values() for p in v[1]))
-    elif key in PRESETS:
-        lay, blk = PRESETS[key]
-    else:
-        raise UsageError(f"--preset {preset!r} is unknown; use one of auto, {', '.join(PRESETS)}")
-    if not layers and not blocks:  # None or [] alike: use the preset
-        return _Selector(lay, blk, PRESET_EXCLUDE, f"preset {key}")
-    given = [f"--layer {p!r}" for p in layers or ()] + [f"--block {p!r}" for p in blocks or ()]
-    return _Selector(tuple(layers or ()), tuple(blocks or ()), (), ", ".join(given) or "no patterns")
+Z_NOISE = 1e-6
+"""A Z within this fraction of the drawing's plan extent is numerically zero: no height."""
 
 
 def load_drawing(path: str | Path) -> tuple[Drawing, list[str]]:
@@ -128,140 +84,6 @@ def load_drawing(path: str | Path) -> tuple[Drawing, list[str]]:
     return doc, [note]
 
 
-@dataclass
-class _Part:
-    """One matched entity: position and radius in drawing units (WCS)."""
-
-    xyz: tuple[float, float, float]
-    radius: float | None
-    source: dict
-
-
-@dataclass
-class _Scan:
-    """What a walk over the model space found."""
-
-    file: str
-    selector: _Selector
-    parts: list[_Part] = field(default_factory=list)
-    outlines: list[list[tuple[float, float]]] = field(default_factory=list)
-    layers_seen: Counter = field(default_factory=Counter)
-    blocks_seen: Counter = field(default_factory=Counter)
-    block_radius: dict[str, float | None] = field(default_factory=dict)
-
-
-def _scale(m: Matrix44 | None) -> float:
-    """Mean plan scale of a transform [drawing units per block unit]."""
-    if m is None:
-        return 1.0
-    return 0.5 * (m.transform_direction(Vec3(1, 0, 0)).magnitude + m.transform_direction(Vec3(0, 1, 0)).magnitude)
-
-
-def _element_id(entity) -> int | str | None:
-    """Revit element id from XDATA under appid ``REVIT``, if any."""
-    if not entity.has_xdata(_REVIT_APPID):
-        return None
-    tags = entity.get_xdata(_REVIT_APPID)
-    numbers = [int(value) for code, value in tags if code in (1070, 1071)]
-    texts = [str(value).strip() for code, value in tags if code == 1000 and str(value).strip()]
-    if numbers:
-        return numbers[0]
-    for text in texts:  # e.g. "123456" or "ElementId 123456"
-        digits = re.search(r"(\d+)\s*$", text)
-        if digits:
-            return int(digits.group(1))
-    return texts[0] if texts else None
-
-
-def _source(scan: _Scan, entity, kind: str, layer: str, ancestry: tuple) -> dict:
-    src: dict = {"file": scan.file, "handle": entity.dxf.handle, "layer": layer, "entity": kind}
-    for holder in (entity, *reversed(ancestry)):
-        element = _element_id(holder)
-        if element is not None:
-            src["element_id"] = element
-            break
-    if ancestry:
-        src["parent"] = ancestry[0].dxf.handle
-    return src
-
-
-def _walk(scan: _Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry: tuple) -> None:
-    """Collect luminaire parts and outline candidates; ``m`` maps these entities to WCS."""
-    for entity in entities:
-        try:
-            layer = entity.dxf.get("layer", "0")
-        except ezdxf.DXFError:  # an entity type ezdxf does not know (a damaged or foreign file): not ours
-            continue
-        if inherited is not None and layer == "0":
-            layer = inherited  # entities on layer 0 inside a block take the INSERT's layer
-        kind = entity.dxftype()
-        if not ancestry or kind in ("INSERT", "CIRCLE", "POINT"):
-            scan.layers_seen[layer] += 1  # inside blocks, count only what could be a luminaire
-        if kind == "INSERT":
-            _visit_insert(scan, entity, layer, m, ancestry)
-        elif kind in ("CIRCLE", "POINT") and scan.selector.matches(layer):
-            if kind == "CIRCLE":
-                centre, radius = entity.ocs().to_wcs(entity.dxf.center), entity.dxf.radius * _scale(m)
-            else:
-                centre, radius = Vec3(entity.dxf.location), None
-            centre = m.transform(centre) if m is not None else centre
-            scan.parts.append(_Part(centre.xyz, radius, _source(scan, entity, kind, layer, ancestry)))
-        elif kind in ("LWPOLYLINE", "POLYLINE") and _match(layer, OUTLINE_LAYERS):
-            points = _closed_points(entity)
-            if points:
-                points = list(m.transform_vertices(points)) if m is not None else points
-                scan.outlines.append([(p.x, p.y) for p in points])
-
-
-def _visit_insert(scan: _Scan, insert, layer: str, m: Matrix44 | None, ancestry: tuple) -> None:
-    name = insert.dxf.name
-    scan.blocks_seen[name] += 1
-    block = insert.block()
-    matched = scan.selector.matches(layer, name)
-    if not matched and (block is None or len(ancestry) >= _MAX_DEPTH):
-        return
-    copies = list(insert.multi_insert()) if insert.mcount > 1 else [insert]
-    for index, copy in enumerate(copies):
-        world = copy.matrix44() if m is None else copy.matrix44() * m
-        if not matched:
-            _walk(scan, block, world, layer, ancestry + (insert,))
-            continue
-        base = block.block.dxf.base_point if block is not None else Vec3()
-        radius = _block_radius(scan, block)
-        src = _source(scan, insert, "INSERT", layer, ancestry)
-        src["block"] = name
-        if len(copies) > 1:
-            src["array_index"] = index
-        scan.parts.append(_Part(world.transform(base).xyz, None if radius is None else radius * _scale(world), src))
-
-
-def _block_radius(scan: _Scan, block) -> float | None:
-    """Largest CIRCLE radius drawn directly in a block definition [block units]."""
-    if block is None:
-        return None
-    if block.name not in scan.block_radius:
-        radii = [e.dxf.radius for e in block if e.dxftype() == "CIRCLE"]
-        scan.block_radius[block.name] = max(radii) if radii else None
-    return scan.block_radius[block.name]
-
-
-def _closed_points(entity) -> list[Vec3]:
-    """WCS vertices of a closed 2D/3D polyline (closing duplicate dropped), else []."""
-    if entity.dxftype() == "LWPOLYLINE":
-        points = list(entity.vertices_in_wcs())
-        closed = entity.closed
-    elif entity.is_2d_polyline or entity.is_3d_polyline:
-        points = list(entity.points_in_wcs())
-        closed = entity.is_closed
-    else:
-        return []
-    if len(points) > 1 and points[0].isclose(points[-1]):
-        points, closed = points[:-1], True
-    return points if closed and len(points) >= 3 else []
-
-
-
-
 def _clusters(xy_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
     """Cluster label per part, numbered in order of each cluster's first part."""
     n = len(xy_m)
@@ -291,20 +113,24 @@ def _groups(labels: np.ndarray) -> list[np.ndarray]:
 
 @dataclass(frozen=True)
 class _Parts:
-    """Matched parts as arrays in drawing units; ``radius`` is NaN where the drawing gives none."""
+    """Taken parts as arrays in drawing units; ``radius`` (circles) and ``size`` (symbol geometry) are NaN
+    where the drawing gives none."""
 
     xyz: np.ndarray
     radius: np.ndarray
+    size: np.ndarray
 
-    def radius_m(self, scale: float, fallback_m: float) -> np.ndarray:
-        return np.where(np.isnan(self.radius), fallback_m, self.radius * scale)
+    def radius_m(self, scale: float, given_m: float | None) -> np.ndarray:
+        """Circle radius, else ``--radius``, else the symbol's size, else the default [m]."""
+        other = given_m if given_m is not None else np.where(np.isnan(self.size), DEFAULT_RADIUS_M, self.size * scale)
+        return np.where(np.isnan(self.radius), other, self.radius * scale)
 
-    def figures(self, scale: float, fallback_m: float, outline: list | None) -> Figures:
+    def figures(self, scale: float, given_m: float | None, outline: list | None) -> Figures:
         """Typical spacing, mounting height and room size if the drawing unit is ``scale`` [m]."""
         spacing = height = None
         if len(self.xyz):
             xy = self.xyz[:, :2] * scale
-            labels = _clusters(xy, self.radius_m(scale, fallback_m))
+            labels = _clusters(xy, self.radius_m(scale, given_m))
             counts = np.bincount(labels)
             centres = np.column_stack([np.bincount(labels, xy[:, i]) / counts for i in (0, 1)])
             if len(centres) >= 2:
@@ -323,6 +149,21 @@ class _Parts:
         return Figures(spacing, height, size)
 
 
+def scan_dxf(path: str | Path, *, preset: str = "auto", layers: list[str] | None = None,
+             blocks: list[str] | None = None) -> tuple[Scan, Drawing, list[str]]:
+    """Open a drawing and walk its model space: what it holds, what the reader takes and rejects (and why)."""
+    path = Path(path)
+    chosen = selector(preset, layers, blocks)
+    doc, notes = load_drawing(path)
+    msp = doc.modelspace()
+    if len(msp) == 0:
+        damaged = " (after recovering the damaged file)" if notes else ""
+        raise InputError(f"{path}: the model space is empty{damaged}; export the plan in model space, not only in a layout")
+    found = scan(path.name, chosen, msp)
+    _check_numbers(found, str(path))
+    return found, doc, notes
+
+
 def read_dxf(
     path: str | Path,
     *,
@@ -333,6 +174,8 @@ def read_dxf(
     mount_height_m: float | None = None,
     radius_m: float | None = None,
     allow_outline_only: bool = False,
+    expected: int | None = None,
+    room: str | None = None,
 ) -> Layout:
     """Read a DXF drawing into a :class:`Layout` (positions [m]).
 
@@ -345,53 +188,65 @@ def read_dxf(
     preset : str
         ``auto``, ``dialux``, ``revit`` or ``generic``: which layers/blocks hold luminaires.
     layers, blocks : list of str, optional
-        fnmatch patterns (case-insensitive) that replace the preset's layer/block patterns.
+        fnmatch patterns (case-insensitive) that replace the preset's layer/block rules.
     mount_height_m : float, optional
-        Mounting height where the drawing's Z is 0 [m]; default ``DEFAULT_MOUNT_HEIGHT_M``.
+        Mounting height where the drawing gives no plausible Z [m]; default ``DEFAULT_MOUNT_HEIGHT_M``.
     radius_m : float, optional
-        LED radius where the drawing has no CIRCLE [m]; default ``DEFAULT_RADIUS_M``.
+        LED radius where the drawing has no CIRCLE [m]; default: the symbol's size, else ``DEFAULT_RADIUS_M``.
     allow_outline_only : bool
         Return a layout without luminaires when the drawing holds only a room outline.
+    expected : int, optional
+        The ``--leds`` count: when the candidates are more, the one group (block name, or circles
+        on a layer) of exactly this many is used.
+    room : str, optional
+        fnmatch pattern of the room outline: its layer, or the name written inside it.
     """
     path = Path(path)
     where = str(path)
     for flag, value in (("--height", mount_height_m), ("--radius", radius_m)):
         if value is not None and not value > 0:
             raise UsageError(f"{flag} {value} m must be positive")
-    selector = _selector(preset, layers, blocks)
-    doc, notes = load_drawing(path)
-    msp = doc.modelspace()
-    if len(msp) == 0:
-        damaged = " (after recovering the damaged file)" if notes else ""
-        raise InputError(f"{where}: the model space is empty{damaged}; export the plan in model space, not only in a layout")
-    scan = _Scan(path.name, selector)
-    _walk(scan, msp, None, None, ())
-    _check_numbers(scan, where)
-    outline = max(scan.outlines, key=area_m2, default=None)
-    if not scan.parts and not (allow_outline_only and outline is not None):
-        hint = " (or --leds N to fill the room outline)" if outline is not None else ""
+    found, doc, notes = scan_dxf(path, preset=preset, layers=layers, blocks=blocks)
+    biggest = max((o.points for o in found.outlines), key=area_m2, default=None)
+    if not found.parts and not (allow_outline_only and biggest is not None):
+        hint = " (or --leds N to fill the room outline)" if biggest is not None else ""
+        rejected = f"; rejected: {_counts(_by_name(found.rejected), 4)}" if found.rejected else ""
         raise InputError(
-            f"{where}: no luminaire matched ({selector.label}); layers seen: {_counts(scan.layers_seen)}; "
-            f"blocks seen: {_counts(scan.blocks_seen)}; pass --layer or --block{hint}"
+            f"{where}: no luminaire matched ({found.selector.label}); layers seen: {_counts(found.layers_seen)}; "
+            f"blocks seen: {_counts(found.blocks_seen)}{rejected}; pass --layer or --block{hint}"
         )
-    fallback_m = radius_m if radius_m is not None else DEFAULT_RADIUS_M
-    parts = _Parts(
-        np.array([p.xyz for p in scan.parts], dtype=float).reshape(-1, 3),
-        np.array([np.nan if p.radius is None else p.radius for p in scan.parts], dtype=float),
-    )
+    xyz = np.array([p.xyz for p in found.parts], dtype=float).reshape(-1, 3)
+    notes += _zero_z_noise(xyz)
+    parts = _Parts(xyz, np.array([np.nan if p.radius is None else p.radius for p in found.parts], dtype=float),
+                   np.array([np.nan if p.size is None else p.size for p in found.parts], dtype=float))
     insunits = int(doc.header.get("$INSUNITS", 0) or 0)
-    unit, reason, unit_notes = choose_unit(lambda s: parts.figures(s, fallback_m, outline), insunits, units, where)
+    unit, reason, unit_notes = choose_unit(lambda s: parts.figures(s, radius_m, biggest), insunits, units, where)
     scale = UNIT_TO_M[unit]
-    luminaires, lum_notes = _luminaires(scan.parts, parts, scale, fallback_m, mount_height_m)
-    outline_m = tuple((x * scale, y * scale) for x, y in outline) if outline is not None else None
-    return Layout(tuple(luminaires), outline_m, where, unit, reason, tuple(notes + unit_notes + lum_notes))
+    luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where)
+    outline, outline_notes = _outline(found, scale, room, where)
+    return Layout(tuple(luminaires), outline, where, unit, reason,
+                  tuple(notes + unit_notes + lum_notes + outline_notes))
 
 
-def _check_numbers(scan: _Scan, where: str) -> None:
+def _zero_z_noise(xyz: np.ndarray) -> list[str]:
+    """Set Z values within ``Z_NOISE`` of the plan extent to 0 (in place): numerical noise, not heights."""
+    if not len(xyz):
+        return []
+    floor = max(1e-9, Z_NOISE * float(np.ptp(xyz[:, :2], axis=0).max()))
+    noise = (xyz[:, 2] != 0) & (np.abs(xyz[:, 2]) <= floor)
+    if not noise.any():
+        return []
+    example = xyz[noise, 2][np.argmax(np.abs(xyz[noise, 2]))]
+    xyz[noise, 2] = 0.0
+    return [f"{int(noise.sum())} Z value(s) within {floor:.3g} drawing units of 0 (up to {example:.3g}) are "
+            "numerical noise: taken as no height"]
+
+
+def _check_numbers(found: Scan, where: str) -> None:
     """Refuse coordinates that are not numbers or lie beyond any building in any unit, and radii <= 0,
     naming the entity, before anything is computed from them."""
     limit = 1e6 * MAX_EXTENT_M / min(UNIT_TO_M.values())  # far beyond any unit: the unit check explains the rest
-    for part in scan.parts:
+    for part in found.parts:
         xyz, r = np.asarray(part.xyz, dtype=float), part.radius
         if not np.isfinite(xyz).all() or np.abs(xyz).max() > limit or (r is not None and not 0 < r < limit):
             src = part.source
@@ -399,43 +254,109 @@ def _check_numbers(scan: _Scan, where: str) -> None:
             raise InputError(f"{where}: {src['entity']} {src['handle']} on layer {src['layer']!r} at "
                              f"({', '.join(f'{v:g}' for v in xyz)}){radius}: not a plausible drawing value "
                              f"(finite, within {limit:g} units, radius > 0); fix or delete that entity")
-    for corners in scan.outlines:
-        pts = np.asarray(corners, dtype=float)
+        if part.size is not None and not 0 < part.size < limit:
+            part.size = None  # a symbol of no or absurd size: the radius falls back
+    for outline in found.outlines:
+        pts = np.asarray(outline.points, dtype=float)
         if not np.isfinite(pts).all() or np.abs(pts).max() > limit:
             raise InputError(f"{where}: a closed polyline on a wall layer has a corner that is not a plausible "
                              f"drawing value (finite, within {limit:g} units); fix or delete it")
 
 
-def _luminaires(
-    found: list[_Part], parts: _Parts, scale: float, fallback_m: float, mount_height_m: float | None
-) -> tuple[list[Luminaire], list[str]]:
-    """Merge parts at one point, convert to metres, sort by (y, x) and name them."""
-    if not found:
+def _choose_group(found: Scan, members: list[np.ndarray], expected: int | None, where: str
+                  ) -> tuple[list[np.ndarray], list[str]]:
+    """With ``--leds N`` and more or fewer candidates, keep the one group of exactly N luminaires."""
+    if expected is None or len(members) == expected:
+        return members, []
+    per_group: Counter = Counter()
+    for m in members:
+        for g in {found.parts[i].group for i in m}:
+            per_group[g] += 1
+    if len(per_group) < 2:
+        return members, []  # check_layout names the mismatch
+    listed = _counts(per_group)
+    matching = [g for g, n in per_group.items() if n == expected]
+    if len(matching) != 1:
+        why = "none" if not matching else f"{len(matching)}"
+        raise InputError(f"{where}: found {len(members)} luminaires in {len(per_group)} groups but --leds says "
+                         f"{expected}, and {why} of the groups has {expected}: {listed}; choose with --block or "
+                         f"--layer, or fix --leds; {INSPECT_HINT.format(path=where)}")
+    chosen = matching[0]
+    kept = [m for m in members if any(found.parts[i].group == chosen for i in m)]
+    return kept, [f"{len(members)} candidates in {len(per_group)} groups ({listed}); {chosen!r} has {expected}, "
+                  f"as --leds says: used it, left the others out"]
+
+
+def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None, mount_height_m: float | None,
+                expected: int | None, where: str) -> tuple[list[Luminaire], list[str]]:
+    """Merge parts at one point, keep the group --leds names, convert to metres, sort by (y, x) and name them."""
+    if not found.parts:
         return [], []
     xyz = parts.xyz * scale
-    radius = parts.radius_m(scale, fallback_m)
-    labels = _clusters(xyz[:, :2], radius)
+    radius = parts.radius_m(scale, radius_m)
+    members_of, notes = _choose_group(found, _groups(_clusters(xyz[:, :2], radius)), expected, where)
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
-    rows, no_z = [], 0
-    for k, members in enumerate(_groups(labels)):
+    rows, no_z, low_z = [], 0, []
+    for k, members in enumerate(members_of):
         x, y = xyz[members, :2].mean(axis=0)
-        zs = xyz[members, 2][xyz[members, 2] != 0]
-        no_z += not len(zs)
+        z = xyz[members, 2][xyz[members, 2] != 0]
+        plausible = z[(z >= HEIGHT_RANGE_M[0]) & (z <= MAX_HEIGHT_M)]
+        no_z += not len(z)
+        if len(z) and not len(plausible):
+            low_z.append(float(z[0]))
         known = parts.radius[members][~np.isnan(parts.radius[members])]
-        source = dict(found[members[0]].source)
+        size = parts.size[members][~np.isnan(parts.size[members])]
+        source = dict(found.parts[members[0]].source)
         if len(members) > 1:
             source["parts"] = int(len(members))
-        r = float(known.max() * scale) if len(known) else fallback_m
-        rows.append((round(y * 1000), round(x * 1000), k, float(x), float(y), float(zs[0]) if len(zs) else height, r, source))
+        r = (float(known.max() * scale) if len(known) else radius_m if radius_m is not None
+             else float(size.max() * scale) if len(size) else DEFAULT_RADIUS_M)
+        rows.append((round(y * 1000), round(x * 1000), k, float(x), float(y),
+                     float(plausible[0]) if len(plausible) else height, r, source))
     rows.sort(key=lambda row: row[:3])
     luminaires = [Luminaire(f"L{i + 1:04d}", x, y, z, r, src) for i, (*_, x, y, z, r, src) in enumerate(rows)]
-    notes = []
-    if len(found) > len(luminaires):
-        notes.append(f"merged {len(found)} parts drawn at the same point into {len(luminaires)} luminaires")
+    merged = sum(len(m) for m in members_of)
+    if merged > len(luminaires):
+        notes.append(f"merged {merged} parts drawn at the same point into {len(luminaires)} luminaires")
+    given = "given" if mount_height_m is not None else "default; set with --height"
     if no_z:
-        given = "given" if mount_height_m is not None else "default; set with --height"
         notes.append(f"{no_z} luminaire(s) have no height in the drawing (Z = 0); used {height:g} m ({given})")
+    if low_z:
+        notes.append(f"{len(low_z)} luminaire(s) have a Z that is no plausible mounting height (e.g. {low_z[0]:.3g} m, "
+                     f"outside {HEIGHT_RANGE_M[0]:g}-{MAX_HEIGHT_M:g} m); used {height:g} m ({given})")
     return luminaires, notes
+
+
+def _outline(found: Scan, scale: float, room: str | None, where: str
+             ) -> tuple[tuple[tuple[float, float], ...] | None, list[str]]:
+    """The floor outline [m], or the rooms ``--room`` names (by layer, or by a text inside)."""
+    rooms = [[(x * scale, y * scale) for x, y in o.points] for o in found.outlines]
+    if room is None:
+        return floor_outline(rooms)
+    pattern = room.upper()
+    chosen = []
+    for candidate, metres in zip(found.outlines, rooms):
+        path = PolygonPath(np.asarray(candidate.points, dtype=float))
+        names = [t for t, at in found.texts if path.contains_point(at)]
+        if fnmatch.fnmatchcase(candidate.layer.upper(), pattern) or any(fnmatch.fnmatchcase(t.upper(), pattern)
+                                                                       for t in names):
+            chosen.append(metres)
+    if not chosen:
+        named = Counter(t for t, at in found.texts for o in found.outlines
+                        if PolygonPath(np.asarray(o.points, dtype=float)).contains_point(at))
+        layers = Counter(o.layer for o in found.outlines)
+        raise InputError(f"{where}: --room {room!r} matches no closed polyline on a wall/room layer by layer or by "
+                         f"a name inside it; layers: {_counts(layers)}; names inside rooms: {_counts(named)}")
+    outline, notes = floor_outline(chosen)
+    return outline, [f"room outline: {len(chosen)} room(s) chosen by --room {room!r}"] + notes
+
+
+def _by_name(counter: Counter) -> Counter:
+    """(what, name, layer, why) -> count, as ``NAME: why`` -> count."""
+    out: Counter = Counter()
+    for (what, name, layer, why), n in counter.items():
+        out[f"{name or what + ' on ' + layer}: {why}"] += n
+    return out
 
 
 def _counts(counter: Counter, limit: int = 8) -> str:

@@ -9,7 +9,7 @@ gives are plausible for a lit ceiling; otherwise the first unit of
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from planner.defaults import UNIT_TO_M
 from planner.errors import InputError, UsageError
@@ -142,6 +142,16 @@ def choose_unit(
         return header, f"{said} ({figures[header].describe()})", []
 
     plausible = [u for u in PREFERENCE if not figures[u].problems()]
+    ignored = ""
+    if not plausible and any(f.height_m is not None for f in figures.values()):
+        # Z plausible in no unit where the spacing is: not a mounting height (a level, noise, a 3D export)
+        without = {u: replace(f, height_m=None) for u, f in figures.items()}
+        if any(not f.empty and not f.problems() for f in without.values()):
+            raw_z = measure(1.0).height_m
+            ignored = f"; luminaire Z (typically {_fmt(raw_z or 0.0)} drawing units) is no plausible height in " \
+                      "any unit that fits the spacing, taken as no height"
+            figures = without
+            plausible = sorted((u for u in PREFERENCE if not figures[u].problems()), key=lambda u: u != header)
     if not plausible:
         raw = measure(1.0)
         if raw.spacing_m is not None:
@@ -157,8 +167,8 @@ def choose_unit(
             f"{HEIGHT_RANGE_M[0]}-{HEIGHT_RANGE_M[1]:g} m high); pass --units"
         )
     unit = plausible[0]
-    why = f" but {', '.join(figures[header].problems())}" if header is not None else ""
-    reason = f"{said}{why}; used {UNIT_NAMES[unit]} ({figures[unit].describe()})"
+    why = f" but {', '.join(figures[header].problems())}" if header is not None and figures[header].problems() else ""
+    reason = f"{said}{why}; used {UNIT_NAMES[unit]} ({figures[unit].describe()}){ignored}"
     if len(plausible) > 1:
         reason += f"; {', '.join(plausible[1:])} would also fit, pass --units if wrong"
     return unit, reason, []

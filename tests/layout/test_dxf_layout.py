@@ -17,7 +17,7 @@ from planner.defaults import UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf import read_dxf
 from planner.layout.dxf_units import PREFERENCE, SPACING_RANGE_M
-from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M
+from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M
 
 LAYOUTS = ROOT / "layouts"
 
@@ -83,7 +83,8 @@ def test_layer_and_block_patterns_replace_the_preset(dialux):
     assert {lum.source["block"] for lum in tables.luminaires} == {"TABLE"}
     symbols = read_dxf(dialux[0], blocks=["dlx_lum_1_s*"])
     assert len(symbols.luminaires) == 36  # rows 2..7 only: no symbol in the MINSERT or nested rows
-    assert all(lum.radius == DEFAULT_RADIUS_M for lum in symbols.luminaires)  # symbol has no circle
+    # the symbol has no circle: its size is its geometry's (two crossed 600 mm lines), not the default
+    assert_allclose([lum.radius for lum in symbols.luminaires], 0.3)
 
 
 def test_read_is_deterministic(dialux):
@@ -140,7 +141,8 @@ def test_layer_0_inside_a_block_takes_the_insert_layer(tmp_path):
     assert_allclose(layout.xyz, [(10, 5, 3), (11.5, 5, 3), (13, 5, 3), (10, 8, 3)])
     assert [lum.source["layer"] for lum in layout.luminaires] == ["A-CEIL"] * 3 + ["E-LITE"]
     assert [lum.source["block"] for lum in layout.luminaires] == ["DOWNLIGHT"] * 3 + ["ROW"]
-    assert_allclose([lum.radius for lum in layout.luminaires], [0.08] * 3 + [DEFAULT_RADIUS_M])
+    # no circle directly in ROW: its size is its geometry's (the three 0.16 m downlights in a row)
+    assert_allclose([lum.radius for lum in layout.luminaires], [0.08] * 3 + [0.08])
 
 
 def test_element_id_as_text(tmp_path):

@@ -1,0 +1,58 @@
+"""The floor outline from a drawing's rooms: one polygon [m] the plan's poses are sampled in.
+
+A drawing holds many closed polylines on wall and room layers: the rooms of a floor, the
+walls themselves as thin rectangles, columns. The floor is their union's outer boundary:
+rooms a wall apart (up to ``2 * WALL_GAP_M``) are joined by closing (grow, unite, shrink),
+holes such as courtyards are dropped, and of separate buildings the largest is kept (a
+note names the others). When one polygon already holds all the others it is the floor, as
+drawn. A chosen room (``--room``, by layer or by the name written inside it) replaces the
+floor by the union of the rooms chosen.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.path import Path as PolygonPath
+
+from planner.layout.model import area_m2
+
+WALL_GAP_M = 0.3
+"""Rooms closer than twice this are one floor (walls up to 0.6 m thick) [m]."""
+
+Polygon = Sequence[tuple[float, float]]
+
+
+def _inside(inner: Polygon, outer: Polygon) -> bool:
+    return bool(PolygonPath(np.asarray(outer, dtype=float)).contains_points(np.asarray(inner, dtype=float),
+                                                                            radius=1e-9).all())
+
+
+def floor_outline(polygons: Sequence[Polygon]) -> tuple[tuple[tuple[float, float], ...] | None, list[str]]:
+    """The floor from room and wall polygons [m]: ``(outline, notes)``; ``(None, [])`` without polygons."""
+    polygons = [p for p in polygons if len(p) >= 3 and area_m2(list(p)) > 0]
+    if not polygons:
+        return None, []
+    largest = max(polygons, key=lambda p: area_m2(list(p)))
+    if all(p is largest or _inside(p, largest) for p in polygons):
+        return tuple((float(x), float(y)) for x, y in largest), []
+    import shapely
+    from shapely.geometry import Polygon as ShapelyPolygon
+    from shapely.geometry.polygon import orient
+
+    shapes = [ShapelyPolygon(p).buffer(0) for p in polygons]  # buffer(0) mends self-touching rings
+    grown = shapely.unary_union([s.buffer(WALL_GAP_M, join_style="mitre") for s in shapes if not s.is_empty])
+    floor = grown.buffer(-WALL_GAP_M, join_style="mitre")
+    parts = sorted(getattr(floor, "geoms", [floor]), key=lambda g: -g.area)
+    parts = [g for g in parts if not g.is_empty and g.area > 0]
+    if not parts:
+        return tuple((float(x), float(y)) for x, y in largest), []
+    main = orient(ShapelyPolygon(parts[0].exterior), 1.0).simplify(1e-6)
+    coords = [(round(float(x), 9) + 0.0, round(float(y), 9) + 0.0) for x, y in list(main.exterior.coords)[:-1]]
+    notes = [f"room outline: the floor joined from {len(polygons)} closed polylines on wall/room layers "
+             f"({main.area:.1f} m2, largest single one {area_m2(list(largest)):.1f} m2)"]
+    if len(parts) > 1:
+        notes.append(f"room outline: {len(parts) - 1} separate part(s) of {sum(g.area for g in parts[1:]):.1f} m2 "
+                     "left out (not within 0.6 m of the largest); choose one with --room")
+    return tuple(coords), notes
