@@ -67,6 +67,8 @@ class Scan:
     """(what, name, layer, why) -> count of the parts taken."""
     rejected: Counter = field(default_factory=Counter)
     """(what, name, layer, why) -> count of the entities rejected (with all they hold)."""
+    rejected_at: list[tuple[float, float, str]] = field(default_factory=list)
+    """WCS plan position and name of every rejected entity (for pictures) [drawing units]."""
     _block_radius: dict[str, float | None] = field(default_factory=dict)
     _block_size: dict[str, float | None] = field(default_factory=dict)
 
@@ -137,6 +139,9 @@ def _walk(s: Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry
             action, why = s.selector.entity(layer)
             if action == "reject":
                 s.rejected[(kind, "", layer, why)] += 1
+                at = Vec3(entity.dxf.center if kind == "CIRCLE" else entity.dxf.location)
+                at = m.transform(at) if m is not None else at
+                s.rejected_at.append((at.x, at.y, f"{kind} on {layer}"))
             if action != "take":
                 continue
             if kind == "CIRCLE":
@@ -173,6 +178,8 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
     action, why = s.selector.insert(layer, name)
     if action == "reject":
         s.rejected[("INSERT", name, layer, why)] += max(1, insert.mcount)
+        at = m.transform(Vec3(insert.dxf.insert)) if m is not None else Vec3(insert.dxf.insert)
+        s.rejected_at.append((at.x, at.y, name))
         return
     if action == "enter" and (block is None or len(ancestry) >= _MAX_DEPTH):
         return

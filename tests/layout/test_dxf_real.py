@@ -164,3 +164,14 @@ def test_a_failed_drawing_read_points_to_vlp_inspect(tmp_path):
     path = _save(tmp_path, doc)
     with pytest.raises(InputError, match=r"found 12 luminaires but --leds says 11.*; vlp-inspect .*site\.dxf lists"):
         read_layout(path, 11)
+
+
+def test_vlp_plan_on_a_bad_drawing_is_one_line_naming_vlp_inspect(tmp_path, capsys):
+    from planner.cli.plan import console_main
+
+    doc, _ = factory.residential()
+    path = _save(tmp_path, doc)
+    assert console_main([str(path), "--leds", "11", "-o", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("vlp-plan: error: ") and f"vlp-inspect {path} lists" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site.dxf"]  # nothing half-written
