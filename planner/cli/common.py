@@ -160,7 +160,7 @@ def verification_line(v: dict) -> str:
                  f"{w['install_tolerance_m']:g} m): {w['read_alike']} read like another triple")
         if w["first_conflicts"]:
             line += "; first: " + " vs ".join("(" + ", ".join(t) + ")" for t in w["first_conflicts"][0][:2])
-        line += ("\n  proof    decodable at every pose of the envelope: proved" if w.get("proved") else
+        line += ("\n  proof    every pose of the envelope that sees a window names one place: proved" if w.get("proved") else
                  "\n  proof    not proved: " + (w.get("not_proved_because") or "a triangle that may be a window "
                                                  "reads like another triple"))
     return line
