@@ -301,6 +301,31 @@ def multi_room_floor(unit: str = "mm") -> Drawing:
     return doc
 
 
+def dynamic_blocks(count: int = 6) -> tuple[Drawing, np.ndarray]:
+    """Dynamic blocks as AutoCAD saves them: each insert references an anonymous block (``*U1``...) whose
+    block record points (XDATA ``AcDbBlockRepBTag``) to the dynamic block it draws, ``CEILING LIGHT`` or
+    ``TWO WAY SWITCH``; all on layer ``E-POWER-LIGHTING`` with a circle inside. Expected: the lights."""
+    doc = new_drawing(6, "R2013")
+    for appid in ("AcDbDynamicBlockGUID", "AcDbBlockRepBTag"):
+        doc.appids.add(appid)
+    doc.layers.add("E-POWER-LIGHTING")
+    msp = doc.modelspace()
+    expected = []
+    for name, per_block in (("CEILING LIGHT", 1.0), ("TWO WAY SWITCH", 0.0)):
+        dynamic = doc.blocks.new(name)
+        dynamic.add_circle((0, 0), 0.1)
+        dynamic.block_record.set_xdata("AcDbDynamicBlockGUID", [(1000, "{00000000-0000-0000-0000-000000000001}")])
+        for k in range(count):
+            anonymous = doc.blocks.new_anonymous_block("U")
+            anonymous.add_circle((0, 0), 0.1)
+            anonymous.block_record.set_xdata("AcDbBlockRepBTag", [(1070, 1), (1005, dynamic.block_record.dxf.handle)])
+            at = (2.0 * k, 3.0 if per_block else 1.0, 2.8)
+            msp.add_blockref(anonymous.name, at, dxfattribs={"layer": "E-POWER-LIGHTING"})
+            if per_block:
+                expected.append(at)
+    return doc, _sorted(expected)
+
+
 def corrupt_missing_endsec(src: str | Path, dst: str | Path) -> Path:
     """Copy a DXF, dropping the ENDSEC that closes its ENTITIES section.
 

@@ -15,7 +15,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import ezdxf
-from ezdxf import bbox
+from ezdxf import bbox, dynblkhelper
 from ezdxf.math import Matrix44, Vec3
 
 from planner.layout.dxf_names import Selector
@@ -171,8 +171,21 @@ def _text(s: Scan, entity, kind: str, m: Matrix44 | None) -> None:
     s.texts.append((" ".join(str(text).split()), (at.x, at.y)))
 
 
-def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tuple) -> None:
+def _effective_name(insert) -> str:
+    """The block name a user sees: for an anonymous block (``*U12``) drawing a dynamic block, the dynamic
+    block's name (AutoCAD's EffectiveName), else the referenced name."""
     name = insert.dxf.name
+    if not name.startswith("*"):
+        return name
+    try:
+        definition = dynblkhelper.get_dynamic_block_definition(insert)
+    except (ezdxf.DXFError, AttributeError, KeyError):
+        return name
+    return definition.name if definition is not None else name
+
+
+def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tuple) -> None:
+    name = _effective_name(insert)
     s.blocks_seen[name] += 1
     block = insert.block()
     action, why = s.selector.insert(layer, name)
@@ -193,6 +206,8 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
         radius, size = _block_radius(s, block), _block_size(s, block)
         src = _source(s, insert, "INSERT", layer, ancestry)
         src["block"] = name
+        if name != insert.dxf.name:
+            src["anonymous_block"] = insert.dxf.name
         if len(copies) > 1:
             src["array_index"] = index
         scale = _scale(world)

@@ -99,6 +99,16 @@ def test_with_leds_the_group_of_that_many_is_used(tmp_path):
         read_layout(path, 13)
 
 
+def test_dynamic_blocks_are_classified_by_the_name_the_user_sees(tmp_path):
+    """An anonymous block *U7 drawing the dynamic block TWO WAY SWITCH is a switch, not a neutral symbol
+    taken because its layer (E-POWER-LIGHTING) says lighting."""
+    doc, expected = factory.dynamic_blocks()
+    layout = read_layout(_save(tmp_path, doc), 6)
+    assert_allclose(layout.xyz, expected, atol=1e-9)
+    assert {lum.source["block"] for lum in layout.luminaires} == {"CEILING LIGHT"}
+    assert all(lum.source["anonymous_block"].startswith("*U") for lum in layout.luminaires)
+
+
 # --- converted DWG: metres over millimetres, circle-less symbols ---------------------------
 
 def test_metres_header_over_millimetre_geometry_and_circle_less_symbols(tmp_path):
