@@ -15,6 +15,7 @@ from __future__ import annotations
 import fnmatch
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 
 from planner.errors import UsageError
 
@@ -67,6 +68,7 @@ def words(name: str) -> list[str]:
     return re.findall(r"[A-Z]+|[0-9]+", spaced.upper())
 
 
+@lru_cache(maxsize=8192)  # a drawing repeats a few hundred names over many thousands of entities
 def name_class(name: str) -> tuple[str, str]:
     """What a name says: ``(LUMINAIRE, word)``, ``(NEUTRAL, "")`` or ``(what, word)`` for another device
     (``"switch"``, ``"fan"``, ``"wall light"``...), with the word that decided."""

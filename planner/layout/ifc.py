@@ -21,7 +21,7 @@ from planner.errors import InputError, UsageError
 from planner.layout.dxf_units import HEIGHT_RANGE_M
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
-__all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of"]
+__all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of", "storey_key"]
 
 _NO_STOREY = "(no storey)"
 
@@ -60,7 +60,8 @@ def storey_of(entity):
     return element.get_container(entity, ifc_class="IfcBuildingStorey") or element.get_container(entity)
 
 
-def _storey_key(storey) -> str:
+def storey_key(storey) -> str:
+    """A storey's name in messages and sources (its GlobalId if unnamed; ``(no storey)`` for None)."""
     return _NO_STOREY if storey is None else (storey.Name or storey.GlobalId)
 
 
@@ -140,7 +141,7 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     groups: dict[str, list] = defaultdict(list)
     for fixture in fixtures:
         home = storey_of(fixture)
-        groups[_storey_key(home)].append((fixture, home))
+        groups[storey_key(home)].append((fixture, home))
     key = _pick_storey(groups, storey, scale, where)
     chosen = groups[key]
     floor_z = _storey_z(chosen[0][1], scale)

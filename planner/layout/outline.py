@@ -44,14 +44,15 @@ def floor_outline(polygons: Sequence[Polygon]) -> tuple[tuple[tuple[float, float
     shapes = [ShapelyPolygon(p).buffer(0) for p in polygons]  # buffer(0) mends self-touching rings
     grown = shapely.unary_union([s.buffer(WALL_GAP_M, join_style="mitre") for s in shapes if not s.is_empty])
     floor = grown.buffer(-WALL_GAP_M, join_style="mitre")
-    parts = sorted(getattr(floor, "geoms", [floor]), key=lambda g: -g.area)
-    parts = [g for g in parts if not g.is_empty and g.area > 0]
+    # each part's outer boundary, holes (rooms inside walls, courtyards) filled: the largest is the floor
+    parts = [ShapelyPolygon(g.exterior) for g in getattr(floor, "geoms", [floor]) if not g.is_empty and g.area > 0]
+    parts.sort(key=lambda g: -g.area)
     if not parts:
         return tuple((float(x), float(y)) for x, y in largest), []
-    main = orient(ShapelyPolygon(parts[0].exterior), 1.0).simplify(1e-6)
+    main = orient(parts[0], 1.0).simplify(1e-6)
     coords = [(round(float(x), 9) + 0.0, round(float(y), 9) + 0.0) for x, y in list(main.exterior.coords)[:-1]]
     notes = [f"room outline: the floor joined from {len(polygons)} closed polylines on wall/room layers "
-             f"({main.area:.1f} m2, largest single one {area_m2(list(largest)):.1f} m2)"]
+             f"({main.area:.1f} m2 within its outer boundary, largest single one {area_m2(list(largest)):.1f} m2)"]
     if len(parts) > 1:
         notes.append(f"room outline: {len(parts) - 1} separate part(s) of {sum(g.area for g in parts[1:]):.1f} m2 "
                      "left out (not within 0.6 m of the largest); choose one with --room")

@@ -94,12 +94,12 @@ def _survey_ifc(report: dict, path: Path, options) -> None:
     import ifcopenshell.util.placement as placement
     import ifcopenshell.util.unit as ifc_unit
 
-    from planner.layout.ifc import _storey_key, light_fixtures, open_model, storey_of
+    from planner.layout.ifc import light_fixtures, open_model, storey_key, storey_of
 
     model = open_model(path)
     scale = float(ifc_unit.calculate_unit_scale(model))
     fixtures = light_fixtures(model)
-    storeys: Counter = Counter(_storey_key(storey_of(f)) for f in fixtures)
+    storeys: Counter = Counter(storey_key(storey_of(f)) for f in fixtures)
     all_storeys = [s.Name or s.GlobalId for s in model.by_type("IfcBuildingStorey")]
     chosen = options.storey
     if chosen is None and len(storeys) == 1:
@@ -114,7 +114,7 @@ def _survey_ifc(report: dict, path: Path, options) -> None:
         return [float(v) * scale for v in placement.get_local_placement(entity.ObjectPlacement)[:2, 3]]
 
     for f in fixtures:
-        key = _storey_key(storey_of(f))
+        key = storey_key(storey_of(f))
         kind = element.get_type(f)
         name = str(kind.Name) if kind is not None and kind.Name else ""
         if chosen is not None and key.casefold() == str(chosen).strip().casefold():
@@ -131,11 +131,11 @@ def _survey_ifc(report: dict, path: Path, options) -> None:
         why = (f"a flow terminal typed {kind.is_a() if kind is not None else 'by nothing'}, not IfcLightFixtureType"
                if terminal.is_a("IfcFlowTerminal") and terminal.is_a() == "IfcFlowTerminal"
                else f"an {terminal.is_a()}, not a light fixture")
-        rejected[(terminal.is_a(), str(terminal.Name or ""), _storey_key(storey_of(terminal)), why)] += 1
+        rejected[(terminal.is_a(), str(terminal.Name or ""), storey_key(storey_of(terminal)), why)] += 1
         points["rejected"].append(at(terminal))
     for proxy in model.by_type("IfcBuildingElementProxy"):
         if name_class(str(proxy.Name or ""))[0] not in (NEUTRAL,):
-            rejected[("IfcBuildingElementProxy", str(proxy.Name), _storey_key(storey_of(proxy)),
+            rejected[("IfcBuildingElementProxy", str(proxy.Name), storey_key(storey_of(proxy)),
                       "a proxy, not a light fixture (export lights as IfcLightFixture)"
                       if name_class(str(proxy.Name))[0] == LUMINAIRE else f"a proxy named as {_says(str(proxy.Name))}")] += 1
             points["rejected"].append(at(proxy))

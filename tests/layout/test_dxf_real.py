@@ -185,3 +185,17 @@ def test_vlp_plan_on_a_bad_drawing_is_one_line_naming_vlp_inspect(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("vlp-plan: error: ") and f"vlp-inspect {path} lists" in err[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["site.dxf"]  # nothing half-written
+
+
+def test_walls_drawn_as_thin_rectangles_give_the_outer_boundary_and_far_parts_are_named():
+    from planner.layout.outline import floor_outline
+
+    def rect(x0, y0, x1, y1):
+        return [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+
+    walls = [rect(0, 0, 12, 0.2), rect(0, 7.8, 12, 8), rect(0, 0, 0.2, 8), rect(11.8, 0, 12, 8)]
+    outline, notes = floor_outline(walls + [rect(40, 0, 44, 3)])  # a shed 28 m away
+    assert area_m2(np.array(outline)) == pytest.approx(96.0)
+    assert_allclose(np.array(outline).max(axis=0), (12, 8), atol=1e-9)
+    assert any("1 separate part(s) of 12.0 m2 left out" in note for note in notes)
+    assert floor_outline([]) == (None, [])
