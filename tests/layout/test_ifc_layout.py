@@ -95,3 +95,22 @@ def test_vlp_plan_writes_an_annotated_ifc_with_the_ids(ifc4_two_storeys, tmp_pat
     before = (out / "archicad-vlp.ifc").read_bytes()
     assert main(argv + ["-o", str(tmp_path / "again")]) in (0, 3)
     assert (tmp_path / "again" / "archicad-vlp.ifc").read_bytes() == before  # reproducible
+
+
+def test_a_fixture_in_a_space_counts_on_its_storey_at_its_composed_position(tmp_path):
+    import ifcopenshell.api
+
+    model, expected = ifc_models.model("IFC4", "mm", {"Ground": (0.0, 3, 2)})
+    storey = model.by_type("IfcBuildingStorey")[0]
+    space = ifcopenshell.api.run("root.create_entity", model, ifc_class="IfcSpace", name="Office")
+    ifcopenshell.api.run("aggregate.assign_object", model, products=[space], relating_object=storey)
+    ifc_models._placement(model, space, (4000.0, 3000.0, 0.0))
+    fixture = ifcopenshell.api.run("root.create_entity", model, ifc_class="IfcLightFixture", name="In the office")
+    ifcopenshell.api.run("spatial.assign_container", model, products=[fixture], relating_structure=space)
+    ifc_models._placement(model, fixture, (10000.0, 10000.0, 2700.0))  # absolute; stored relative to the space
+    assert fixture.ObjectPlacement.PlacementRelTo is not None
+    layout = read_ifc(ifc_models.save(model, tmp_path / "space.ifc"))
+    assert len(layout.luminaires) == 7
+    last = layout.luminaires[-1]
+    assert (last.x, last.y, last.z) == pytest.approx((10.0, 10.0, 2.7))
+    assert last.source["storey"] == "Ground" and last.source["ifc_name"] == "In the office"
