@@ -31,6 +31,16 @@ def open_model(path: str | Path):
     import ifcopenshell
 
     try:
+        with open(path, "rb") as stream:
+            stream.seek(0, 2)
+            stream.seek(max(0, stream.tell() - 256))
+            tail = stream.read()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the file ({exc.strerror or exc}); check its permissions") from None
+    if tail.strip() and b"END-ISO-10303-21" not in tail.upper():  # ifcopenshell reads a cut-off file silently
+        raise InputError(f"{path}: the model ends before END-ISO-10303-21; (cut off in a copy or a download?); "
+                         "export or copy it again")
+    try:
         return ifcopenshell.open(str(path))
     except Exception as exc:  # ifcopenshell raises its own and plain errors alike: not an IFC we can read
         raise InputError(f"{path}: not a readable IFC model ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "

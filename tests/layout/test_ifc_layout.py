@@ -60,9 +60,14 @@ def test_ifc_flags_that_do_not_apply(ifc2x3_feet, tmp_path):
     with pytest.raises(UsageError, match="--room is for .dxf drawings"):
         read_layout(ifc2x3_feet[0], None, ReadOptions(room="A"))
     bad = tmp_path / "bad.ifc"
-    bad.write_text("ISO-10303-21;\nthis is not a model\n")
+    bad.write_text("ISO-10303-21;\nthis is not a model\nEND-ISO-10303-21;\n")
     with pytest.raises(InputError, match=r"bad\.ifc: not a readable IFC model.*; vlp-inspect"):
         read_layout(bad, None)
+    cut = tmp_path / "cut.ifc"
+    data = ifc2x3_feet[0].read_bytes()
+    cut.write_bytes(data[: len(data) // 2])  # ifcopenshell would read the first half's fixtures silently
+    with pytest.raises(InputError, match=r"cut\.ifc: the model ends before END-ISO-10303-21"):
+        read_layout(cut, None)
 
 
 def test_height_flag_where_the_fixture_sits_on_the_floor(tmp_path):
