@@ -116,22 +116,23 @@ def text_report(table: list[TableRow], rows: list[CurveRow], site: dict | None, 
     out = ["vlp-efficiency: bits per ID; efficiency = 1 - bits / naive bits, as the paper counts it", "",
            "The paper's cases (grids of 0.5 m pitch; shortest = vlp-plan's default scheme, verified)",
            f"{'luminaires':>10} {'naive':>5} {'paper scheme':>12} {'pair bound':>10} {'shortest':>12} "
-           f"{'its bound':>9} {'eff. paper':>10} {'eff. shortest':>13}   paper printed"]
+           f"{'its bound':>9} {'eff. paper':>10} {'eff. shortest':>13} {'shortest is':>12}   paper printed"]
     for r in table:
         printed = (f"{r.printed_bits} bits of {r.printed_naive_bits}, {_pct(r.printed_efficiency)}"
                    if r.printed_bits is not None else "-")
         out.append(f"{r.luminaires:>10} {r.naive_bits:>5} {r.paper_bits:>12} {r.pair_bound_bits:>10} "
                    f"{r.shortest_scheme + ' ' + str(r.shortest_bits):>12} {r.shortest_bound_bits:>9} "
-                   f"{_pct(r.paper_efficiency):>10} {_pct(r.shortest_efficiency):>13}   {printed}")
+                   f"{_pct(r.paper_efficiency):>10} {_pct(r.shortest_efficiency):>13} {r.decodability:>12}   {printed}")
     out += ["", f"Curve: square lattices, {PITCH_M:g} m pitch (paper scheme up to {args.paper_up_to}, window scheme "
             f"up to {args.window_up_to} luminaires)",
             f"{'luminaires':>10} {'naive':>5} {'paper scheme':>12} {'pair bound':>10} {'window':>12} "
-            f"{'its bound':>9} {'time [s]':>8}"]
+            f"{'its bound':>9} {'window is':>12} {'time [s]':>8}"]
     for c in rows:
         bound = "-" if c.window_bound_bits is None else str(c.window_bound_bits)
         flag = "" if not c.window_ambiguous_poses else f"  ({c.window_ambiguous_poses} ambiguous poses)"
         out.append(f"{c.luminaires:>10} {c.naive_bits:>5} {_or_not(c.paper_bits):>12} {c.pair_bound_bits:>10} "
-                   f"{_or_not(c.window_bits):>12} {bound:>9} {sum(c.seconds.values()):>8.1f}{flag}")
+                   f"{_or_not(c.window_bits):>12} {bound:>9} {c.window_decodability or '-':>12} "
+                   f"{sum(c.seconds.values()):>8.1f}{flag}")
     if site:
         considered = "; ".join(f"{k} {v.get('bits')} bits ({v.get('ambiguous_poses')} ambiguous poses)"
                                for k, v in site["schemes_considered"].items())
@@ -153,12 +154,13 @@ def to_json(table: list[TableRow], rows: list[CurveRow], site: dict | None, args
                    "shortest_efficiency": round(r.shortest_efficiency, 4), "schemes_considered": r.considered,
                    "printed": {"naive_bits": r.printed_naive_bits, "bits": r.printed_bits,
                                "efficiency": None if r.printed_efficiency is None else round(r.printed_efficiency, 4)},
-                   "seconds": round(r.seconds, 2)} for r in table],
+                   "decodability": r.decodability, "seconds": round(r.seconds, 2)} for r in table],
         "curve": {"pitch_m": PITCH_M, "paper_up_to": args.paper_up_to, "window_up_to": args.window_up_to,
                   "rows": [{"luminaires": r.luminaires, "naive_bits": r.naive_bits, "paper_bits": r.paper_bits,
                             "pair_bound_bits": r.pair_bound_bits, "window_bits": r.window_bits,
                             "window_bound_bits": r.window_bound_bits,
                             "window_ambiguous_poses": r.window_ambiguous_poses,
+                            "window_decodability": r.window_decodability,
                             "seconds": {k: round(v, 2) for k, v in r.seconds.items()}} for r in rows]},
         "site": site,
         "plot": str(plot) if plot else None,

@@ -90,6 +90,7 @@ class TableRow:
     printed_naive_bits: int | None
     printed_bits: int | None
     seconds: float
+    decodability: str = "sampled only"  # of the shortest scheme's plan: "proved" or "sampled only"
 
     @property
     def paper_efficiency(self) -> float:
@@ -124,7 +125,7 @@ def table_row(layout: Layout, name: str = "") -> TableRow:
     printed = PAPER_PRINTED.get(n, (None, None))
     return TableRow(n, name or layout.source_path, bits_for(n), paper.bits, pair_lower_bound(graph)[1], a.bits,
                     a.scheme, a.lower_bound_bits, dict(plan.considered), printed[0], printed[1],
-                    time.perf_counter() - t0)
+                    time.perf_counter() - t0, plan.verification.decodability if plan.verification else "sampled only")
 
 
 @dataclass(frozen=True)
@@ -143,6 +144,7 @@ class CurveRow:
     window_bound_bits: int | None = None
     window_ambiguous_poses: int | None = None
     seconds: dict = field(default_factory=dict)
+    window_decodability: str | None = None  # "proved" or "sampled only"; None when not computed
 
 
 @functools.lru_cache(maxsize=32)
@@ -159,7 +161,7 @@ def curve_row(n: int, *, window: bool, paper: bool = True, pitch_m: float = PITC
         t0 = time.perf_counter()
         paper_bits = assign_paper(layout.xy, graph).bits
         seconds["paper"] = time.perf_counter() - t0
-    window_bits = window_bound = ambiguous = None
+    window_bits = window_bound = ambiguous = decodability = None
     if window:
         t0 = time.perf_counter()
         plan = make_plan(layout, PlanOptions(scheme="window", error_poses_per_m2=0))
@@ -167,7 +169,8 @@ def curve_row(n: int, *, window: bool, paper: bool = True, pitch_m: float = PITC
         window_bits, window_bound = plan.assignment.bits, plan.assignment.lower_bound_bits
         assert plan.considered is not None  # make_plan always records the schemes it considered
         ambiguous = plan.considered["window"]["ambiguous_poses"]
-    return CurveRow(n, bits_for(n), bound, paper_bits, window_bits, window_bound, ambiguous, seconds)
+        decodability = plan.verification.decodability if plan.verification else "sampled only"
+    return CurveRow(n, bits_for(n), bound, paper_bits, window_bits, window_bound, ambiguous, seconds, decodability)
 
 
 def curve(sizes: list[int], window_up_to: int = WINDOW_UP_TO, paper_up_to: int = PAPER_UP_TO,

@@ -157,12 +157,18 @@ class Verification:
         """Share of sampled poses that decode uniquely."""
         return self.count(DECODABLE) / self.poses if self.poses else 0.0
 
+    @property
+    def decodability(self) -> str:
+        """``proved`` when the window set is proved complete and no window reads like another triple (nor
+        any sampled pose is ambiguous), else ``sampled only``."""
+        proved = bool(self.window_set and self.window_set.proved and not self.conflicts)
+        return "proved" if proved else "sampled only"
+
     def summary(self, names: list[str], limit: int = 5) -> dict:
         """The ``verification`` mapping of ``plan.yaml``."""
         covered = self.count(DECODABLE) + self.count(AMBIGUOUS)
-        proved = bool(self.window_set and self.window_set.proved and not self.conflicts)
         return {
-            "decodability": "proved" if proved else "sampled only",
+            "decodability": self.decodability,
             "method": "sampled",
             "poses": self.poses,
             "poses_per_m2": self.per_m2,
