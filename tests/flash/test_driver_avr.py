@@ -22,6 +22,7 @@ import pytest
 import serial
 from cobs import cobs
 
+from conftest import ROOT
 from planner.errors import InputError
 from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image
 from planner.flash.avr.build import (
@@ -59,7 +60,6 @@ from planner.twin.receiver import FrameFormat
 
 pytestmark = pytest.mark.needs_avr
 
-ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
 BAUD = 250_000  # the firmware's line rate (exact at 16 MHz)
