@@ -71,6 +71,7 @@ class Scan:
     """WCS plan position and name of every rejected entity (for pictures) [drawing units]."""
     _block_radius: dict[str, float | None] = field(default_factory=dict)
     _block_size: dict[str, float | None] = field(default_factory=dict)
+    _holds_blocks: dict[str, bool] = field(default_factory=dict)
 
 
 def scan(file: str, selector: Selector, msp) -> Scan:
@@ -189,6 +190,8 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
     s.blocks_seen[name] += 1
     block = insert.block()
     action, why = s.selector.insert(layer, name)
+    if action == "reject" and why.startswith("layer") and _holds_blocks(s, block):
+        action, why = "enter", ""  # a neutral block holding blocks is a container, whatever its layer says
     if action == "reject":
         s.rejected[("INSERT", name, layer, why)] += max(1, insert.mcount)
         at = m.transform(Vec3(insert.dxf.insert)) if m is not None else Vec3(insert.dxf.insert)
@@ -214,6 +217,15 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
         s.taken[("INSERT", name, layer, why)] += 1
         s.parts.append(Part(world.transform(base).xyz, None if radius is None else radius * scale,
                             None if size is None else size * scale, src, name))
+
+
+def _holds_blocks(s: Scan, block) -> bool:
+    """Whether a block definition holds INSERTs (it groups other symbols)."""
+    if block is None:
+        return False
+    if block.name not in s._holds_blocks:
+        s._holds_blocks[block.name] = any(e.dxftype() == "INSERT" for e in block)
+    return s._holds_blocks[block.name]
 
 
 def _block_radius(s: Scan, block) -> float | None:

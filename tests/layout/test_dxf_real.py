@@ -109,6 +109,20 @@ def test_dynamic_blocks_are_classified_by_the_name_the_user_sees(tmp_path):
     assert all(lum.source["anonymous_block"].startswith("*U") for lum in layout.luminaires)
 
 
+def test_a_container_on_a_device_layer_is_searched_and_a_symbol_there_is_not(tmp_path):
+    doc = factory.new_drawing(6)
+    doc.blocks.new("DOWNLIGHT").add_circle((0, 0), 0.08)
+    doc.blocks.new("S1").add_circle((0, 0), 0.05)  # a nameless symbol
+    plan = doc.blocks.new("ELEC_PLAN")
+    for k in range(4):
+        plan.add_blockref("DOWNLIGHT", (2.0 * k, 0.0, 2.7))
+    msp = doc.modelspace()
+    msp.add_blockref("ELEC_PLAN", (0, 0), dxfattribs={"layer": "E-POWER"})  # the plan inserted on the power layer
+    msp.add_blockref("S1", (1, 1), dxfattribs={"layer": "E-POWER"})
+    layout = read_dxf(_save(tmp_path, doc))
+    assert_allclose(layout.xyz, [(2.0 * k, 0.0, 2.7) for k in range(4)])
+
+
 # --- converted DWG: metres over millimetres, circle-less symbols ---------------------------
 
 def test_metres_header_over_millimetre_geometry_and_circle_less_symbols(tmp_path):
