@@ -213,3 +213,12 @@ def test_walls_drawn_as_thin_rectangles_give_the_outer_boundary_and_far_parts_ar
     assert_allclose(np.array(outline).max(axis=0), (12, 8), atol=1e-9)
     assert any("1 separate part(s) of 12.0 m2 left out" in note for note in notes)
     assert floor_outline([]) == (None, [])
+
+
+def test_layer_patterns_do_not_bring_back_the_devices_on_that_layer(tmp_path):
+    doc, expected = factory.residential()
+    path = _save(tmp_path, doc)
+    layout = read_dxf(path, layers=["e-lighting"])
+    assert_allclose(layout.xy, expected[:, :2], atol=1e-9)  # switches, fans, sockets... on the layer stay out
+    switches = read_dxf(path, blocks=["TWO WAY SWITCH"])  # a --block pattern takes what it names
+    assert len(switches.luminaires) == 12 and {lum.source["block"] for lum in switches.luminaires} == {"TWO WAY SWITCH"}
