@@ -120,9 +120,11 @@ class _Parts:
     radius: np.ndarray
     size: np.ndarray
 
-    def radius_m(self, scale: float, given_m: float | None) -> np.ndarray:
-        """Circle radius, else ``--radius``, else the symbol's size, else the default [m]."""
-        other = given_m if given_m is not None else np.where(np.isnan(self.size), DEFAULT_RADIUS_M, self.size * scale)
+    def merge_radius_m(self, scale: float, given_m: float | None) -> np.ndarray:
+        """The size parts are merged by: circle radius, else the drawn symbol's size, else ``--radius``, else the
+        default [m] (``--radius`` gives the LED, not the symbol drawn around it)."""
+        fallback = given_m if given_m is not None else DEFAULT_RADIUS_M
+        other = np.where(np.isnan(self.size), fallback, self.size * scale)
         return np.where(np.isnan(self.radius), other, self.radius * scale)
 
     def figures(self, scale: float, given_m: float | None, outline: list | None) -> Figures:
@@ -130,7 +132,7 @@ class _Parts:
         spacing = height = None
         if len(self.xyz):
             xy = self.xyz[:, :2] * scale
-            labels = _clusters(xy, self.radius_m(scale, given_m))
+            labels = _clusters(xy, self.merge_radius_m(scale, given_m))
             counts = np.bincount(labels)
             centres = np.column_stack([np.bincount(labels, xy[:, i]) / counts for i in (0, 1)])
             if len(centres) >= 2:
@@ -293,8 +295,8 @@ def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None
     if not found.parts:
         return [], []
     xyz = parts.xyz * scale
-    radius = parts.radius_m(scale, radius_m)
-    members_of, notes = _choose_group(found, _groups(_clusters(xyz[:, :2], radius)), expected, where)
+    merge = parts.merge_radius_m(scale, radius_m)
+    members_of, notes = _choose_group(found, _groups(_clusters(xyz[:, :2], merge)), expected, where)
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
     rows, no_z, low_z = [], 0, []
     for k, members in enumerate(members_of):

@@ -180,9 +180,26 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
         a, b = layout.luminaires[worst], layout.luminaires[int(idx[worst, 1])]
         raise InputError(
             f"{where}: luminaires {a.name!r} and {b.name!r} are {dist[worst, 1]:.3f} m apart, "
-            f"closer than their diameters; check the units (--units) or remove the duplicate"
+            f"closer than their diameters; check the units (--units) or remove the duplicate "
+            f"({describe(a)}; {describe(b)})"
         )
     return layout
+
+
+def describe(lum: Luminaire) -> str:
+    """Where a luminaire is and where it came from, for messages: ``L0201: INSERT 1A2 'LED PANEL' on 'E-LITE'
+    at (12.3, 4.5) m, radius 0.1 m`` (a DXF entity, a table line or an IFC GlobalId, whichever the source has)."""
+    src = lum.source
+    if "handle" in src:
+        origin = f"{src.get('entity', 'entity')} {src['handle']}" + (f" {src['block']!r}" if "block" in src else "") \
+            + (f" on {src['layer']!r}" if "layer" in src else "")
+    elif "global_id" in src:
+        origin = f"{src.get('entity', 'IFC entity')} {src['global_id']}"
+    elif "line" in src:
+        origin = f"line {src['line']}"
+    else:
+        origin = "generated" if src.get("generated") else "given"
+    return f"{lum.name}: {origin} at ({lum.x:.3g}, {lum.y:.3g}) m, radius {lum.radius:.3g} m"
 
 
 def principal_angle_rad(outline: np.ndarray) -> float:

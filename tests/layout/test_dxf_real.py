@@ -136,10 +136,12 @@ def test_metres_header_over_millimetre_geometry_and_circle_less_symbols(tmp_path
     assert all(lum.source["parts"] == 2 for lum in layout.luminaires)
 
 
-def test_radius_flag_wins_over_the_symbol_size(tmp_path):
-    doc, _ = factory.converted_panels(offset_mm=0.0)
-    layout = read_dxf(_save(tmp_path, doc), radius_m=0.12)
+def test_radius_flag_wins_over_the_symbol_size_but_parts_still_merge_by_it(tmp_path):
+    doc, expected = factory.converted_panels()
+    layout = read_layout(_save(tmp_path, doc), 20, ReadOptions(radius_m=0.12))
     assert_allclose([lum.radius for lum in layout.luminaires], 0.12)
+    assert layout.unit == "mm"  # not 40 luminaires in centimetres, as parts 0.12 m apart would give
+    assert_allclose(layout.xyz, expected, atol=1e-9)
 
 
 # --- the floor outline --------------------------------------------------------------------
@@ -222,3 +224,14 @@ def test_layer_patterns_do_not_bring_back_the_devices_on_that_layer(tmp_path):
     assert_allclose(layout.xy, expected[:, :2], atol=1e-9)  # switches, fans, sockets... on the layer stay out
     switches = read_dxf(path, blocks=["TWO WAY SWITCH"])  # a --block pattern takes what it names
     assert len(switches.luminaires) == 12 and {lum.source["block"] for lum in switches.luminaires} == {"TWO WAY SWITCH"}
+
+
+def test_overlapping_luminaires_are_named_with_their_entities(tmp_path):
+    """Regression: the overlap error named L0201/L0205, names that appear nowhere in the drawing."""
+    doc = factory.new_drawing(6)
+    for x in (0.0, 0.12, 3.0, 6.0):
+        doc.modelspace().add_circle((x, 0.0, 2.7), 0.1, dxfattribs={"layer": "LIGHTING"})
+    with pytest.raises(InputError, match=r"'L0001' and 'L0002' are 0\.120 m apart.*\(L0001: CIRCLE [0-9A-F]+ on "
+                                         r"'LIGHTING' at \(0, 0\) m, radius 0\.1 m; L0002: CIRCLE [0-9A-F]+ on "
+                                         r"'LIGHTING' at \(0\.12, 0\) m"):
+        read_layout(_save(tmp_path, doc), None)
