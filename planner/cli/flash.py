@@ -242,8 +242,11 @@ def main(argv: list[str] | None = None) -> int:
         except OSError:
             pass  # the port is gone already
     if args.json:
+        line = {"requests": link.stats.requests, "retries": link.stats.retries, "bytes_sent": link.stats.bytes_sent,
+                "bytes_received": link.stats.bytes_received, "dropped_frames": link.stats.dropped_frames}
         print(json.dumps({"plan": str(doc_path), "port": shown, "journal": str(journal.path), "drivers": report,
-                          "verified": sum(r["verified"] for r in report), "failed": len(failed)}, indent=2))
+                          "verified": sum(r["verified"] for r in report), "failed": len(failed), "link": line},
+                         indent=2))
     if failed:
         print(f"vlp-flash: {len(failed)} driver(s) failed and keep their previous configuration: "
               f"{', '.join(failed[:10])}{' ...' if len(failed) > 10 else ''}; journal {journal.path}", file=sys.stderr)

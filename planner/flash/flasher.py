@@ -140,10 +140,11 @@ def _choose_version(hello: Hello, versions: Versions) -> int:
 def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int, sha: bytes,
               progress: Callable[[int, int], None] | None) -> None:
     block_s = hello.block_write_us * 1e-6
-    reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 0), driver_s=block_s)
+    erase_s = (-(-hello.slot_size // max(hello.max_block, 1)) + 1) * block_s  # BEGIN may erase the whole slot
+    reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 0), driver_s=erase_s)
     offset, crc = BEGIN_REPLY.unpack(reply.payload[:BEGIN_REPLY.size])
     if offset > len(image) or crc != zlib.crc32(image[:offset]):
-        reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 1), driver_s=block_s)
+        reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 1), driver_s=erase_s)
         offset = 0
     while offset < len(image):
         chunk = image[offset:offset + hello.max_block]

@@ -385,3 +385,23 @@ def test_interactive_mode_asks_for_each_driver_on_a_terminal(plans, tmp_path):
     assert "plug the driver of R01C01 (ID" in proc.stdout and "plug the driver of R01C02" in proc.stdout
     assert proc.stdout.count("flashed, verified") == 1
     assert list(_entries(tmp_path / "j.json")) == ["R01C01"]
+
+
+def test_begin_gets_the_time_to_erase_a_whole_slot(monkeypatch):
+    """BEGIN may erase the staging slot: its driver time is the slot's blocks plus one at HELLO's block
+    write time (the reference AVR driver erases a used 256-byte EEPROM slot in about 1.1 s)."""
+    port = _sim()
+    link, d = Link(port), port.bus.drivers[0]
+    given: dict[str, list[float]] = {}
+    real = Link.request
+
+    def spy(self, address, command, payload=b"", **kw):
+        given.setdefault(command.name, []).append(kw.get("driver_s", 0.0))
+        return real(self, address, command, payload, **kw)
+
+    monkeypatch.setattr(Link, "request", spy)
+    assert flash_driver(link, 1, PLAN_IMAGE, KEY).verified
+    block_s = d.block_write_us * 1e-6
+    blocks = -(-d.slot_size // d.max_block)
+    assert given["BEGIN"] == [pytest.approx((blocks + 1) * block_s)]
+    assert given["WRITE"] == [pytest.approx(block_s)] * len(given["WRITE"]) and given["COMMIT"] == [pytest.approx(2 * block_s)]
