@@ -1,6 +1,6 @@
 """The layout stage: luminaires with positions in metres, and the room they light.
 
-Readers (``dxf_layout``, ``table_layout``) build a :class:`Layout`; this module
+Readers (``dxf``, ``ifc``, ``tables``) build a :class:`Layout`; this module
 holds the data type, the checks every layout must pass, and the lattice fill
 that places ``N`` luminaires inside a room outline.
 """

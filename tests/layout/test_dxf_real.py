@@ -12,12 +12,14 @@ import json
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 import dxf_factory as factory
 from planner.errors import InputError
 from planner.layout.dxf import read_dxf
-from planner.layout.dxf_names import LUMINAIRE, NEUTRAL, name_class, words
+from planner.layout.dxf_names import LIGHT_WORDS, LUMINAIRE, NEUTRAL, name_class, words
 from planner.layout.model import area_m2
 from planner.pipeline import ReadOptions, read_layout
 
@@ -40,6 +42,22 @@ def _save(tmp_path, doc, name="site.dxf"):
 ])
 def test_names_are_matched_as_words(name, what):
     assert name_class(name)[0] == what
+
+
+_NEUTRAL_WORDS = st.sampled_from(["CEILING", "OFFICE", "2X2", "TYPE", "A", "600", "RECESSED", "COLUMN", "TILED",
+                                   "SATELLITE", "CLAMP", "CLOSEDFILLED", "ROOM"])
+_SEPARATORS = st.sampled_from([" ", "-", "_", "."])
+
+
+@settings(max_examples=200, deadline=None)
+@given(before=st.lists(_NEUTRAL_WORDS, max_size=3), light=st.sampled_from(sorted(LIGHT_WORDS)),
+       device=st.sampled_from(["SWITCH", "FAN", "SOCKET", "SENSOR", "DIMMER"]), sep=_SEPARATORS,
+       tail=st.lists(_NEUTRAL_WORDS, max_size=2))
+def test_the_last_device_word_of_the_head_decides(before, light, device, sep, tail):
+    assert name_class(sep.join(before + [light] + tail))[0] == LUMINAIRE
+    assert name_class(sep.join(before + [light, device] + tail))[0] != LUMINAIRE  # LIGHT SWITCH is a switch
+    assert name_class(sep.join(before + [light, "CONTROLLED", "BY", device] + tail))[0] == LUMINAIRE
+    assert name_class(sep.join(before + tail))[0] == NEUTRAL  # words that hold LUM, LED, LITE, LAMP are not them
 
 
 def test_words_split_case_digits_and_punctuation():
