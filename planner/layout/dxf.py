@@ -72,7 +72,8 @@ def load_drawing(path: str | Path) -> tuple[Drawing, list[str]]:
     try:
         doc, auditor = recover.readfile(where)
     except Exception as exc:  # recover is the last resort: any failure means unreadable
-        raise InputError(f"{where}: damaged DXF that could not be recovered ({exc}); re-export the drawing") from exc
+        why = " ".join(str(exc).split())  # ezdxf quotes the damaged line, carriage return and all
+        raise InputError(f"{where}: damaged DXF that could not be recovered ({why}); re-export the drawing") from exc
     fixed = [e.message for e in auditor.fixes]
     note = f"recovered a damaged DXF; the auditor fixed {len(fixed)} problem(s)"
     if fixed:

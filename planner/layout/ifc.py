@@ -21,7 +21,7 @@ from planner.errors import InputError, UsageError
 from planner.layout.dxf_units import HEIGHT_RANGE_M
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
-__all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of", "storey_key"]
+__all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of", "storey_key", "pick_storey"]
 
 _NO_STOREY = "(no storey)"
 
@@ -86,7 +86,7 @@ def _storey_z(storey, scale: float) -> float:
     return float(storey.Elevation or 0.0) * scale
 
 
-def _pick_storey(groups: dict, storey: str | None, scale: float, where: str) -> str:
+def pick_storey(groups: dict, storey: str | None, scale: float, where: str) -> str:
     """The storey key to read: the one ``storey`` names (name or elevation [m]), or the only one with fixtures."""
     def listing() -> str:
         return ", ".join(f"{key!r} ({len(items)} fixtures, floor at {_storey_z(items[0][1], scale):.2f} m)"
@@ -152,7 +152,7 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     for fixture in fixtures:
         home = storey_of(fixture)
         groups[storey_key(home)].append((fixture, home))
-    key = _pick_storey(groups, storey, scale, where)
+    key = pick_storey(groups, storey, scale, where)
     chosen = groups[key]
     floor_z = _storey_z(chosen[0][1], scale)
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M

@@ -94,16 +94,21 @@ def _survey_ifc(report: dict, path: Path, options) -> None:
     import ifcopenshell.util.placement as placement
     import ifcopenshell.util.unit as ifc_unit
 
-    from planner.layout.ifc import light_fixtures, open_model, storey_key, storey_of
+    from planner.layout.ifc import light_fixtures, open_model, pick_storey, storey_key, storey_of
 
     model = open_model(path)
     scale = float(ifc_unit.calculate_unit_scale(model))
     fixtures = light_fixtures(model)
-    storeys: Counter = Counter(storey_key(storey_of(f)) for f in fixtures)
+    groups: dict[str, list] = {}
+    for f in fixtures:
+        home = storey_of(f)
+        groups.setdefault(storey_key(home), []).append((f, home))
+    storeys = Counter({key: len(items) for key, items in groups.items()})
     all_storeys = [s.Name or s.GlobalId for s in model.by_type("IfcBuildingStorey")]
-    chosen = options.storey
-    if chosen is None and len(storeys) == 1:
-        chosen = next(iter(storeys))
+    try:  # the storey read_ifc would read (by name or elevation), if any
+        chosen = pick_storey(groups, options.storey, scale, str(path)) if groups else None
+    except PlannerError:
+        chosen = None
     taken: Counter = Counter()
     rejected: Counter = Counter()
     points: dict = {"taken": [], "rejected": [], "outlines": []}
@@ -117,7 +122,7 @@ def _survey_ifc(report: dict, path: Path, options) -> None:
         key = storey_key(storey_of(f))
         kind = element.get_type(f)
         name = str(kind.Name) if kind is not None and kind.Name else ""
-        if chosen is not None and key.casefold() == str(chosen).strip().casefold():
+        if key == chosen:
             taken[(f.is_a(), name, key, "light fixture on the chosen storey")] += 1
             points["taken"].append(at(f))
         else:

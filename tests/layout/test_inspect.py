@@ -69,7 +69,7 @@ def test_inspect_ifc_names_storeys_and_what_is_not_a_light(tmp_path, capsys, sch
     code, report = _report([str(path)], capsys)
     assert code == 1 and "2 storeys hold light fixtures" in report["error"]
     assert [(s["name"], s["count"]) for s in report["storeys"]] == [("Ground", 12), ("First", 9)]
-    code, report = _report([str(path), "--storey", "First"], capsys)
+    code, report = _report([str(path), "--storey", "3.5"], capsys)  # First, by its elevation [m]
     assert code == 0 and report["luminaires"] == 9 and report["unit"] == unit
     taken, rejected = report["taken"], _why(report["rejected"])
     assert sum(r["count"] for r in taken) == 9 and {r["why"] for r in taken} == {"light fixture on the chosen storey"}
