@@ -57,6 +57,34 @@ QUALIFIERS: dict[str, frozenset[str]] = {
 }
 """Words that make a light something other than a ceiling luminaire when they stand before it in the head."""
 
+NOT_LIGHTS = frozenset({"SKYLIGHT", "SKYLIGHTS", "DAYLIGHT", "DAYLIGHTING", "HIGHLIGHT", "HIGHLIGHTS", "TWILIGHT",
+                        "SUNLIGHT", "MOONLIGHT", "STARLIGHT", "LIGHTNING", "LIGHTWEIGHT", "LIGHTWELL", "LIGHTER"})
+"""Words that hold LIGHT but name no luminaire (a skylight is a window)."""
+
+_LED_COMPOUNDS = frozenset({"PANEL", "PANELS", "STRIP", "STRIPS", "TUBE", "TUBES", "LIGHT", "LIGHTS", "LAMP",
+                            "DOWNLIGHT", "BATTEN", "SPOT", "SPOTS", "FIXTURE"})
+_DEVICE_SUFFIXES = ("SWITCH", "FAN", "SOCKET", "SENSOR", "DETECTOR", "OUTLET")
+
+
+def _word_class(word: str) -> str | None:
+    """LUMINAIRE, a device class, or None for one word; compounds written as one word count
+    (``CEILINGLIGHT``, ``LIGHTFIXTURE``, ``LEDPANEL``, ``LIGHTSWITCH``, ``EXHAUSTFAN``)."""
+    if word in LIGHT_WORDS:
+        return LUMINAIRE
+    if word in _OTHER:
+        return _OTHER[word]
+    if word in NOT_LIGHTS or len(word) < 6:
+        return None
+    device = next((d for d in _DEVICE_SUFFIXES if word.endswith(d)), None)
+    if device is not None:
+        return _OTHER[device]
+    if word.endswith(("LIGHT", "LIGHTS")) or word.startswith(("LIGHT", "LUMINAIRE")):
+        return LUMINAIRE
+    if word.startswith("LED") and word[3:] in _LED_COMPOUNDS:
+        return LUMINAIRE
+    return None
+
+
 _HEAD_ENDS = frozenset({"BY", "WITH", "W", "VIA", "FOR", "FROM", "CONTROLLED", "CONTROL", "OPERATED", "TO", "ON",
                         "AT", "IN"})
 """Words after which a name only qualifies its head (``... CONTROLLED BY SWITCH``)."""
@@ -77,12 +105,13 @@ def name_class(name: str) -> tuple[str, str]:
         if word in _HEAD_ENDS and head:
             break
         head.append(word)
-    last = next((k for k in range(len(head) - 1, -1, -1) if head[k] in LIGHT_WORDS or head[k] in _OTHER), None)
+    last = next((k for k in range(len(head) - 1, -1, -1) if _word_class(head[k]) is not None), None)
     if last is None:
         return NEUTRAL, ""
     word = head[last]
-    if word in _OTHER:
-        return _OTHER[word], word
+    what = _word_class(word)
+    if what != LUMINAIRE:
+        return str(what), word
     for what, qualifiers in QUALIFIERS.items():
         near = head[:last] if what in ("wall light", "exit sign") else head[max(0, last - 1):last]
         hit = next((w for w in near if w in qualifiers), None)

@@ -38,6 +38,8 @@ def _save(tmp_path, doc, name="site.dxf"):
     ("Lighting Switch", "switch"), ("TWO WAY SWITCH", "switch"), ("CEILING FAN", "fan"),
     ("CEILING FAN WITH LIGHT", "fan"), ("SOCKET 6A", "socket"), ("PIR SENSOR", "sensor"),
     ("EXIT SIGN", "exit sign"), ("EMERGENCY EXIT LIGHT", "exit sign"), ("WALL LIGHT", "wall light"),
+    ("CEILINGLIGHT", LUMINAIRE), ("LightFixture-A", LUMINAIRE), ("LEDPANEL600", LUMINAIRE), ("SKYLIGHT", NEUTRAL),
+    ("LEDGE", NEUTRAL), ("LIGHTSWITCH", "switch"), ("EXHAUSTFAN", "fan"), ("WALLLIGHT", "wall light"),
     ("WALL MOUNTED LIGHT", "wall light"), ("FLOOR LAMP", "floor or table lamp"), ("E-LITE-CIRC", "annotation"),
 ])
 def test_names_are_matched_as_words(name, what):
@@ -45,7 +47,7 @@ def test_names_are_matched_as_words(name, what):
 
 
 _NEUTRAL_WORDS = st.sampled_from(["CEILING", "OFFICE", "2X2", "TYPE", "A", "600", "RECESSED", "COLUMN", "TILED",
-                                   "SATELLITE", "CLAMP", "CLOSEDFILLED", "ROOM"])
+                                   "SATELLITE", "CLAMP", "CLOSEDFILLED", "ROOM", "SKYLIGHT", "LEDGE", "LIGHTNING"])
 _SEPARATORS = st.sampled_from([" ", "-", "_", "."])
 
 
