@@ -1,1 +1,1 @@
-"""The nine ``vlp-*`` commands: one module each, and their shared parser and conventions (``common``)."""
+"""The ten ``vlp-*`` commands: one module each, and their shared parser and conventions (``common``)."""
