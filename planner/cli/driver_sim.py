@@ -64,6 +64,17 @@ def _parser() -> argparse.ArgumentParser:
 
 
 
+def _wake_on_signals() -> tuple[int, int]:
+    """A pipe that SIGTERM and SIGINT write to instead of ending the process, so the serving loop stops and
+    the finally blocks clean up (temporary folders, emulators)."""
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_w, False)
+    signal.set_wakeup_fd(wake_w)
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(signum, lambda *_: None)
+    return wake_r, wake_w
+
+
 def serve(master: int, bus: SimBus, wakeup: int) -> None:
     """Move bytes between the terminal's ``master`` side and ``bus`` until ``wakeup`` is readable."""
     later: list[tuple[float, int, bytes]] = []  # (time due [s, monotonic], order, bytes): stalled answers
@@ -124,11 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no line editing: bytes pass unchanged
         os.set_blocking(master, False)
-        wake_r, wake_w = os.pipe()
-        os.set_blocking(wake_w, False)
-        signal.set_wakeup_fd(wake_w)
-        for signum in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(signum, lambda *_: None)
+        wake_r, wake_w = _wake_on_signals()
         last = args.first_address + args.drivers - 1
         if args.json:
             print(json.dumps({"port": os.ttyname(slave), "drivers": args.drivers,
@@ -162,11 +169,7 @@ def _main_avr(args: argparse.Namespace, key: bytes) -> int:
         bus = AvrBus(args.drivers, key, eeprom_dir, first_address=args.first_address,
                      serial_prefix="AVR-" if args.serial_prefix is None else args.serial_prefix,
                      trace_dir=args.trace, build_dir=args.build_dir)
-        wake_r, wake_w = os.pipe()
-        os.set_blocking(wake_w, False)
-        signal.set_wakeup_fd(wake_w)
-        for signum in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(signum, lambda *_: None)
+        wake_r, wake_w = _wake_on_signals()
         last = args.first_address + args.drivers - 1
         if args.json:
             print(json.dumps({"port": bus.port, "drivers": args.drivers, "addresses": [args.first_address, last],

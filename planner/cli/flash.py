@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--all", action="store_true", help="every luminaire of the plan")
     p.add_argument("--port", help="serial port: a device (/dev/ttyUSB0, COM3), a pseudo-terminal, or sim://...")
     p.add_argument("--baud", type=cli.positive_int, default=115200, help="line rate [bit/s] (default 115200)")
+    p.add_argument("--extra-timeout-ms", type=cli.at_most(10_000.0, strict=False), default=0.0, metavar="MS",
+                   help="added to every request's timeout: for USB adapters with a latency timer, radio links or "
+                   "emulated drivers on a busy machine (default 0, at most 10000)")
     p.add_argument("--bus", action="store_true", help="batch mode: all drivers on one multi-drop bus, no prompts")
     p.add_argument("--bus-map", metavar="CSV", help="with --bus: 'name,address' rows (default: plan order, from 1)")
     p.add_argument("--key-file", metavar="FILE", help="site key, hex or raw bytes (or env VLP_SITE_KEY, hex)")
@@ -199,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     assert key is not None  # only a dry run goes without
     journal.check_writable()
     port, shown = open_port(args.port, args.baud), shown_port(args.port)
-    link, failed, name = Link(port, args.baud), [], ""
+    link, failed, name = Link(port, args.baud, extra_timeout_s=args.extra_timeout_ms / 1000), [], ""
     try:
         for k, e in enumerate(targets, 1):
             name, image = e.name, images[e.name]

@@ -48,10 +48,11 @@ class LinkStats:
 class Link:
     """Requests to drivers over ``port`` (a pyserial ``Serial``) at ``baud`` [bit/s]."""
 
-    def __init__(self, port, baud: int = 115200, retries: int = RETRIES):
+    def __init__(self, port, baud: int = 115200, retries: int = RETRIES, extra_timeout_s: float = 0.0):
         self.port = port
         self.baud = baud
         self.retries = retries
+        self.extra_timeout_s = extra_timeout_s  # added to every attempt: adapters with latency, emulated drivers
         self._seqs: dict[int, int] = {}
         self.seq = 0
         self.stats = LinkStats()
@@ -62,8 +63,8 @@ class Link:
         return n_bytes * 10 / self.baud
 
     def timeout_s(self, request_bytes: int, response_bytes: int, driver_s: float = 0.0) -> float:
-        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work."""
-        return BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s
+        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work (+ ``extra_timeout_s``)."""
+        return BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s + self.extra_timeout_s
 
     def request(self, address: int, command: Command, payload: bytes = b"", *, response_bytes: int = 80,
                 driver_s: float = 0.0) -> Packet:

@@ -64,6 +64,9 @@ BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
 BAUD = 250_000  # the firmware's line rate (exact at 16 MHz)
 RETRIES = 12  # this file's own requests: the emulated MCUs share two cores with the rest of the suite
+EMULATOR_SLACK_MS = 250
+"""vlp-flash's --extra-timeout-ms here: simavr runs at about real time only while it gets a core, and under the
+whole suite it does not always (in CI, drivers 1 and 2 once missed all five 27 ms HELLO attempts)."""
 NAMES = ["R01C01", "R01C02", "R01C03", "R01C04", "R01C05", "R01C06"]
 
 
@@ -88,7 +91,8 @@ def _config(plans: Path, plan: str, name: str) -> dict:
 def _flash(plans: Path, plan: str, port: str, journal: Path, names: list[str], *extra: str) -> subprocess.Popen:
     return subprocess.Popen([str(BIN / "vlp-flash"), str(plans / plan / "plan.yaml"), *names, "--bus", "--bus-map",
                              str(plans / "map.csv"), "--port", port, "--key-file", str(plans / "key"), "--baud",
-                             str(BAUD), "--journal", str(journal), "--json", *extra],
+                             str(BAUD), "--journal", str(journal), "--json", "--extra-timeout-ms", str(EMULATOR_SLACK_MS),
+                             *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -446,7 +450,7 @@ def test_firmware_answers_as_the_python_model_does(plans, tmp_path):
             line = encode(packet)
             expected = [decode(f) for f in Deframer().feed(model.receive(line))]
             port.write(line)
-            got = _answers(port, 1.0 if expected else 0.08, enough=len(expected))
+            got = _answers(port, 3.0 if expected else 0.08, enough=len(expected))  # returns once enough arrived
             assert [_comparable(p) for p in got] == [_comparable(p) for p in expected], packet
             for answer in expected:
                 name = Status(answer.payload[0]).name if answer.is_error else Command(answer.command).name
