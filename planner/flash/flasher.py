@@ -210,9 +210,8 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
 
 def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: FlashResult, wrote: bool,
            verify_only: bool, started: float) -> FlashResult:
-    """``result`` after a failure, with what the driver now reports (it may run the new image after all)."""
-    if not result.serial:  # it never answered: nothing was written, and it will not answer now
-        return replace(result, seconds=time.perf_counter() - started)
+    """``result`` after a failure, with what the driver now reports (it may run the new image after all). A
+    driver that never answered is asked too: it may have lost power in the midst of HELLO and booted since."""
     for _ in range(ASK_AFTER_FAILURE):
         try:
             hello = _hello(link, address)
