@@ -50,6 +50,17 @@ class Work:
         return f"{self.poses:,} camera poses ({parts}): about {self.peak_bytes / 1e9:,.1f} GB and {took}"
 
 
+def plan_sample_per_m2(area: np.ndarray, *, verify: bool, poses_per_m2: float, error_poses_per_m2: float) -> float:
+    """Density of a plan's one shared pose sample over ``area`` [1/m^2]: the densest of chip timing,
+    verification and the error map, which each take a prefix of it."""
+    from planner.modulation import timing_per_m2
+    from planner.positioning.accuracy import error_per_m2
+
+    densities = [timing_per_m2(area)] + [poses_per_m2] * verify + \
+        [error_per_m2(area, error_poses_per_m2)] * (verify and error_poses_per_m2 > 0)
+    return max(densities)
+
+
 def plan_work(xy: np.ndarray, outline, *, scheme: str, verify: bool, poses_per_m2: float,
               error_poses_per_m2: float) -> Work:
     """The samples :func:`planner.pipeline.make_plan` draws for luminaires at ``xy`` [m]: one shared
@@ -57,14 +68,11 @@ def plan_work(xy: np.ndarray, outline, *, scheme: str, verify: bool, poses_per_m
     without a complete proof (an upper bound: a proved site skips it), the design sample."""
     from planner.codes.schemes import design_per_m2
     from planner.layout.model import area_m2
-    from planner.modulation import timing_per_m2
-    from planner.positioning.accuracy import error_per_m2
     from planner.verify.windows import pose_count, working_area
 
     area = working_area(xy, outline)
-    densities = [timing_per_m2(area)] + [poses_per_m2] * verify + \
-        [error_per_m2(area, error_poses_per_m2)] * (verify and error_poses_per_m2 > 0)
-    samples = {"plan sample": pose_count(area, max(densities))}
+    per_m2 = plan_sample_per_m2(area, verify=verify, poses_per_m2=poses_per_m2, error_poses_per_m2=error_poses_per_m2)
+    samples = {"plan sample": pose_count(area, per_m2)}
     if scheme in ("window", "auto"):
         samples["window design"] = pose_count(area, design_per_m2(poses_per_m2, area_m2(area)))
     return Work(samples)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.budget import plan_sample_per_m2
 from planner.camera import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
@@ -24,10 +25,10 @@ from planner.errors import InputError, UsageError
 from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
-from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows, timing_per_m2
+from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
-from planner.positioning.accuracy import ERROR_POSES_PER_M2, error_per_m2, site_accuracy
+from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
@@ -153,9 +154,9 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
 
     area = working_area(xy, layout.outline)
     with_error_map = options.verify and options.error_poses_per_m2 > 0
-    densities = [timing_per_m2(area)] + [options.poses_per_m2] * options.verify \
-        + [error_per_m2(area, options.error_poses_per_m2)] * with_error_map
-    sample = PoseSample.draw(area, xyz, radii, cam, max(densities), options.seed)  # every stage takes a prefix
+    per_m2 = plan_sample_per_m2(area, verify=options.verify, poses_per_m2=options.poses_per_m2,
+                                error_poses_per_m2=options.error_poses_per_m2)
+    sample = PoseSample.draw(area, xyz, radii, cam, per_m2, options.seed)  # every stage takes a prefix
     observations: dict = {}  # seed -> what the camera sees; shared by every scheme checked
     if options.verify:
         poses, windows = sample.first(options.poses_per_m2)
