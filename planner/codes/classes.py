@@ -49,21 +49,31 @@ class Groups:
         return int(self.group.max()) + 1 if len(self.group) else 0
 
 
+def _distinct_ccw(windows: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """The distinct triples of ``windows``, each counter-clockwise."""
+    return counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0),
+                             xyz[:, :2])
+
+
+def _turn_ranks(triples: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct side vectors of every turn of ``triples`` (rounded to :data:`SHAPE_RESOLUTION_M`) and
+    each triple's three turns as ranks among them (T x 3): equal ranks are one exact shape."""
+    rounded = np.round(np.stack([sides(np.roll(triples, -r, axis=1), xyz) for r in range(3)], 1)
+                       / SHAPE_RESOLUTION_M).astype(np.int64)
+    vectors, rank = np.unique(rounded.reshape(-1, 3), axis=0, return_inverse=True)
+    return vectors, rank.reshape(-1, 3)
+
+
 def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, matches: np.ndarray | None = None) -> Groups:
     """Group the windows and every triple of the site within the tolerance of one of them (``matches``,
     if already found: :func:`planner.codes.rivals.shape_matches` of these windows)."""
-    xy = xyz[:, :2]
-    win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0), xy)
+    win = _distinct_ccw(windows, xyz)
     everything = np.vstack([win, shape_matches(win, xyz, tolerance_m) if matches is None else matches])
     key = np.sort(everything, axis=1)
     _, first = np.unique(key, axis=0, return_index=True)  # windows come first, so they keep their flag
     triples = everything[np.sort(first)]
     is_window = np.sort(first) < len(win)
-    # exact classes: the rotation whose rounded sides rank lowest
-    rounded = np.round(np.stack([sides(np.roll(triples, -r, axis=1), xyz) for r in range(3)], 1)
-                       / SHAPE_RESOLUTION_M).astype(np.int64)
-    vectors, rank = np.unique(rounded.reshape(-1, 3), axis=0, return_inverse=True)
-    rank = rank.reshape(-1, 3)
+    vectors, rank = _turn_ranks(triples, xyz)  # exact classes: the turn whose rounded sides rank lowest
     turn = np.argmin(rank, axis=1)
     cls = rank[np.arange(len(rank)), turn]
     used, cls = np.unique(cls, return_inverse=True)
@@ -84,14 +94,10 @@ def clique_lower_bound(windows: np.ndarray, xyz: np.ndarray) -> int:
     must reach the largest such class (:func:`planner.codes.window.lower_bound_labels`)."""
     from planner.codes.window import lower_bound_labels
 
-    win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0),
-                            xyz[:, :2])
+    win = _distinct_ccw(windows, xyz)
     if len(win) == 0:
         return 1
-    rounded = np.round(np.stack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)], 1)
-                       / SHAPE_RESOLUTION_M).astype(np.int64)
-    _, rank = np.unique(rounded.reshape(-1, 3), axis=0, return_inverse=True)
-    rank = rank.reshape(-1, 3)
+    _, rank = _turn_ranks(win, xyz)
     used, shape = np.unique(rank.min(axis=1), return_inverse=True)
     symmetric = np.zeros(len(used), dtype=bool)
     symmetric[shape] = (rank == rank[:, :1]).all(axis=1)
