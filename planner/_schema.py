@@ -7,11 +7,13 @@ failure reads the same everywhere: ``file: field.path: what is allowed (got ...)
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Iterable
+from typing import Annotated, TypeVar
 
-from pydantic import Field, Strict, ValidationError
+from pydantic import BaseModel, Field, Strict, ValidationError
 
 from planner.defaults import MAX_EXTENT_M
+from planner.errors import InputError
 
 # Strict scalars: no '5' for 5 and no true for 1 (an int is still a float); lists may stand for tuples.
 Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
@@ -47,3 +49,22 @@ def validation_message(exc: ValidationError) -> str:
     where = _where(tuple(p for p in first["loc"] if not str(p).startswith("function-")))
     more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
     return (f"{where}: " if where else "") + what + more
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def validated(model: type[M], doc: object, where: str, what: str, *, strict: bool | None = None,
+              known: Iterable[str] | None = None, label: str = "known", hint: str = "") -> M:
+    """``doc`` checked by ``model``, or one :class:`InputError`: ``where: field.path: what is wrong`` (after an
+    unknown field, the ``known`` names under ``label``; then ``hint``), or that it is nested too deeply to be
+    ``what``. ``strict`` None keeps each field's own strictness; True or False overrides it. The one way every
+    reader turns a pydantic failure into a line for the user."""
+    try:
+        return model.model_validate(doc, strict=strict)
+    except ValidationError as exc:
+        names = f"; {label}: {', '.join(known)}" if known is not None and exc.errors()[0]["type"] == "extra_forbidden" \
+            else ""
+        raise InputError(f"{where}: {validation_message(exc)}{names}{hint}") from None
+    except RecursionError:
+        raise InputError(f"{where}: nested too deeply to be {what}") from None

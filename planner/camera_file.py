@@ -4,10 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import ValidationError
-
 from planner._files import load_yaml
-from planner._schema import validation_message
+from planner._schema import validated
 from planner.camera import Camera
 from planner.errors import InputError
 from planner.plan_file import CameraFields
@@ -22,8 +20,4 @@ def read_camera(path: str | Path) -> Camera:
     doc = load_yaml(path, "no such camera file")
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a mapping of camera fields ({', '.join(CameraFields.model_fields)})")
-    try:
-        return CameraFields.model_validate(doc).to_camera()
-    except ValidationError as exc:
-        known = f"; known: {', '.join(CameraFields.model_fields)}" if exc.errors()[0]["type"] == "extra_forbidden" else ""
-        raise InputError(f"{path}: {validation_message(exc)}{known}") from None
+    return validated(CameraFields, doc, str(path), "a camera", known=CameraFields.model_fields).to_camera()

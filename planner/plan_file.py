@@ -16,10 +16,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, model_validator
 
 from planner._files import load_yaml
-from planner._schema import Coordinate, Count, Finite, Positive, Text, validation_message
+from planner._schema import Coordinate, Count, Finite, Positive, Text, validated
 from planner.defaults import (
     LINE_CODE_NAMES,
     MAX_FOCAL_PX,
@@ -241,12 +241,7 @@ def plan_from_document(doc: object, where: str) -> PlanFile:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         got = doc.get("format") if isinstance(doc, dict) else None
         raise InputError(f"{where}: not a {FORMAT} plan (field 'format' is {got!r}); write it with vlp-plan")
-    try:
-        return PlanFile.model_validate(doc)
-    except ValidationError as exc:
-        raise InputError(f"{where}: {validation_message(exc)}; write the plan again with vlp-plan") from None
-    except RecursionError:
-        raise InputError(f"{where}: nested too deeply to be a plan") from None
+    return validated(PlanFile, doc, where, "a plan", hint="; write the plan again with vlp-plan")
 
 
 def load_plan(path: str | Path) -> PlanFile:

@@ -10,10 +10,10 @@ from __future__ import annotations
 import csv
 from typing import TYPE_CHECKING, Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from planner._files import read_text
-from planner._schema import validation_message
+from planner._schema import validated
 from planner.errors import InputError
 
 if TYPE_CHECKING:
@@ -41,10 +41,8 @@ def read_bus_map(plan: PlanFile, path: str | None) -> dict[str, int]:
             continue
         if len(row) != 2:
             raise InputError(f"{path}: line {n}: expected 'name,address' with address 1..65534")
-        try:
-            entry = BusMapRow.model_validate({"name": row[0].strip(), "address": row[1].strip()})
-        except ValidationError as exc:
-            raise InputError(f"{path}: line {n}: {validation_message(exc)}") from None
+        entry = validated(BusMapRow, {"name": row[0].strip(), "address": row[1].strip()}, f"{path}: line {n}",
+                          "a bus map row")
         if entry.name in out:
             raise InputError(f"{path}: line {n}: {entry.name!r} is mapped twice; give each luminaire one address")
         if entry.address in out.values():

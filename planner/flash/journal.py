@@ -18,10 +18,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from planner._files import load_json, write_text_atomically
-from planner._schema import Count, Text, validation_message
+from planner._schema import Count, Text, validated
 from planner.errors import InputError, UsageError
 from planner.flash.flasher import FlashResult
 
@@ -85,11 +85,8 @@ class Journal:
         if doc.get("plan_hash") != self.plan_hash:
             raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan "
                              f"({self.plan_hash}); give another --journal for a new plan")
-        try:
-            checked = _JournalFile.model_validate(doc, strict=True)
-        except ValidationError as exc:
-            raise InputError(f"{self.path}: {validation_message(exc)}; the journal was edited or damaged: move it "
-                             "away to start a new one") from None
+        checked = validated(_JournalFile, doc, str(self.path), "a journal", strict=True,
+                            hint="; the journal was edited or damaged: move it away to start a new one")
         return {name: entry.model_dump(exclude_unset=True) for name, entry in checked.luminaires.items()}
 
     def check_writable(self) -> None:

@@ -13,10 +13,10 @@ import csv
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from planner._files import load_yaml, read_text
-from planner._schema import validation_message
+from planner._schema import M, validated
 from planner.defaults import MAX_LUMINAIRES, UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
@@ -61,7 +61,7 @@ class LayoutFile(BaseModel):
     luminaires: Annotated[list[LuminaireRow], Field(max_length=MAX_LUMINAIRES)] | None = None
 
 
-ALLOWED = ", ".join(f for f in LuminaireRow.model_fields if f != "id")
+ALLOWED = [f for f in LuminaireRow.model_fields if f != "id"]
 
 
 def _unit_scale(unit: str, where: str) -> float:
@@ -71,14 +71,8 @@ def _unit_scale(unit: str, where: str) -> float:
         raise InputError(f"{where}: unknown unit {unit!r}; use one of {', '.join(UNIT_TO_M)}") from None
 
 
-def _checked(model: type[BaseModel], doc: object, where: str, *, strict: bool) -> Any:
-    try:
-        return model.model_validate(doc, strict=strict)
-    except ValidationError as exc:
-        known = f"; allowed: {ALLOWED}" if exc.errors()[0]["type"] == "extra_forbidden" else ""
-        raise InputError(f"{where}: {validation_message(exc)}{known}") from None
-    except RecursionError:
-        raise InputError(f"{where}: nested too deeply to be a layout") from None
+def _checked(model: type[M], doc: object, where: str, *, strict: bool) -> M:
+    return validated(model, doc, where, "a layout", strict=strict, known=ALLOWED, label="allowed")
 
 
 def _luminaire(row: LuminaireRow, k: int, scale: float, defaults: dict, source: dict) -> Luminaire:

@@ -13,14 +13,13 @@ import math
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from planner._files import load_json
-from planner._schema import Count, Finite, Positive, validation_message
+from planner._schema import Count, Finite, Positive, validated
 from planner.camera import Camera
 from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
 from planner.ellipse import Ellipse
-from planner.errors import InputError
 from planner.positioning.locate import Snapshot
 
 
@@ -81,12 +80,7 @@ class ObservationFile(BaseModel):
 
 def parse_snapshot(doc, where: str = "observation") -> Snapshot:
     """A :class:`Snapshot` from the decoded JSON document; :class:`InputError` names the bad field."""
-    try:
-        obs = ObservationFile.model_validate(doc, strict=True)
-    except ValidationError as exc:
-        raise InputError(f"{where}: {validation_message(exc)}") from None
-    except RecursionError:
-        raise InputError(f"{where}: nested too deeply to be an observation") from None
+    obs = validated(ObservationFile, doc, where, "an observation", strict=True)
     c = obs.camera
     camera = Camera(c.width, c.height, c.fx, c.fy if c.fy is not None else c.fx,
                     c.cx if c.cx is not None else c.width / 2, c.cy if c.cy is not None else c.height / 2)
