@@ -25,11 +25,13 @@ from planner.defaults import (
     MAX_POSES_PER_M2,
     MAX_SEED,
     POSES_PER_M2,
+    UNIT_TO_M,
 )
 from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera import Camera
+    from planner.pipeline import ReadOptions
 
 
 class Parser(argparse.ArgumentParser):
@@ -102,6 +104,35 @@ def common_flags(p: argparse.ArgumentParser, json_help: str) -> None:
     p.add_argument("--json", action="store_true", help=json_help)
     p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
     p.add_argument("--version", action="version", version=f"{p.prog} {__version__}")
+
+
+def add_reading_flags(p: argparse.ArgumentParser, title: str, what: str) -> None:
+    """The flags that steer how a layout or drawing ``what`` is read (vlp-plan, vlp-inspect); :func:`read_options`."""
+    g = p.add_argument_group(title)
+    g.add_argument("--units", choices=sorted(UNIT_TO_M), help=f"coordinate unit of {what}, overriding the file")
+    g.add_argument("--preset", choices=["auto", "dialux", "revit", "generic"], default="auto",
+                   help="DXF luminaire patterns (default: auto = all presets)")
+    g.add_argument("--layer", action="append", default=[], metavar="PATTERN",
+                   help="DXF layer pattern of luminaires (fnmatch, repeatable; replaces the preset's)")
+    g.add_argument("--block", action="append", default=[], metavar="PATTERN",
+                   help="DXF block-name pattern of luminaires (repeatable; replaces the preset's)")
+    g.add_argument("--height", type=positive_float, metavar="M",
+                   help="mounting height [m] where the layout gives none (default 2.5)")
+    g.add_argument("--radius", type=positive_float, metavar="M",
+                   help="LED radius [m] where the layout gives none (default 0.1)")
+    g.add_argument("--room", metavar="PATTERN",
+                   help="DXF: the room outline is the closed polylines whose layer, or the name written inside, "
+                   "matches PATTERN (fnmatch); default: the whole floor")
+    g.add_argument("--storey", metavar="NAME",
+                   help="IFC: the building storey whose light fixtures to plan (name or elevation in m)")
+
+
+def read_options(args: argparse.Namespace) -> ReadOptions:
+    """The :class:`~planner.pipeline.ReadOptions` the flags of :func:`add_reading_flags` ask for."""
+    from planner.pipeline import ReadOptions
+
+    return ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius,
+                       args.room, args.storey)
 
 
 def add_verify_flags(p: argparse.ArgumentParser) -> None:

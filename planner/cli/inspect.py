@@ -12,7 +12,7 @@ import sys
 
 from planner import __version__
 from planner.cli import common as cli
-from planner.defaults import MAX_LUMINAIRES, UNIT_TO_M
+from planner.defaults import MAX_LUMINAIRES
 from planner.errors import ExitCode, UsageError
 
 SHOWN = 12
@@ -32,18 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--png", metavar="FILE", help="also draw the candidates (taken, rejected) over the drawing")
     p.add_argument("--leds", type=cli.count_up_to(MAX_LUMINAIRES), metavar="N",
                    help="read as vlp-plan --leds N would (the group of N among several)")
-    g = p.add_argument_group("reading (as vlp-plan)")
-    g.add_argument("--units", choices=sorted(UNIT_TO_M), help="coordinate unit of a DXF, overriding the file")
-    g.add_argument("--preset", choices=["auto", "dialux", "revit", "generic"], default="auto",
-                   help="DXF luminaire patterns (default: auto = all presets)")
-    g.add_argument("--layer", action="append", default=[], metavar="PATTERN",
-                   help="DXF layer pattern of luminaires (repeatable; replaces the preset's)")
-    g.add_argument("--block", action="append", default=[], metavar="PATTERN",
-                   help="DXF block-name pattern of luminaires (repeatable; replaces the preset's)")
-    g.add_argument("--room", metavar="PATTERN", help="DXF: the room outline by layer or name inside")
-    g.add_argument("--storey", metavar="NAME", help="IFC: the storey to read (name or elevation in m)")
-    g.add_argument("--height", type=cli.positive_float, metavar="M", help="mounting height [m] where none is given")
-    g.add_argument("--radius", type=cli.positive_float, metavar="M", help="LED radius [m] where none is given")
+    cli.add_reading_flags(p, "reading (as vlp-plan)", "DRAWING")
     cli.common_flags(p, "print the whole report as JSON")
     return p
 
@@ -58,10 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     if not Path(args.drawing).is_file():
         raise UsageError(f"{args.drawing}: no such file")
     from planner.layout.survey import draw_survey, survey
-    from planner.pipeline import ReadOptions
-
-    options = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius,
-                          args.room, args.storey)
+    options = cli.read_options(args)
     report = survey(args.drawing, args.leds, options)
     if png is not None and report.get("points"):
         from planner._files import write_atomically

@@ -21,7 +21,6 @@ from planner.defaults import (
     MAX_POSES_PER_M2,
     MAX_TIME_LIMIT_S,
     SCHEMES,
-    UNIT_TO_M,
 )
 from planner.errors import ExitCode, UsageError
 
@@ -45,23 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="expected luminaire count (a mismatch is an error); with only a room outline, "
                    "lay out N luminaires on a lattice inside it (at most 100,000)")
     p.add_argument("-o", "--outdir", metavar="OUTDIR", help="output directory (default: <layout>-vlp next to LAYOUT)")
-    g = p.add_argument_group("reading")
-    g.add_argument("--units", choices=sorted(UNIT_TO_M), help="coordinate unit of LAYOUT, overriding the file")
-    g.add_argument("--preset", choices=["auto", "dialux", "revit", "generic"], default="auto",
-                   help="DXF luminaire patterns (default: auto = all presets)")
-    g.add_argument("--layer", action="append", default=[], metavar="PATTERN",
-                   help="DXF layer pattern of luminaires (fnmatch, repeatable; replaces the preset's)")
-    g.add_argument("--block", action="append", default=[], metavar="PATTERN",
-                   help="DXF block-name pattern of luminaires (repeatable; replaces the preset's)")
-    g.add_argument("--height", type=cli.positive_float, metavar="M",
-                   help="mounting height [m] where the layout gives none (default 2.5)")
-    g.add_argument("--radius", type=cli.positive_float, metavar="M",
-                   help="LED radius [m] where the layout gives none (default 0.1)")
-    g.add_argument("--room", metavar="PATTERN",
-                   help="DXF: the room outline is the closed polylines whose layer, or the name written inside, "
-                   "matches PATTERN (fnmatch); default: the whole floor")
-    g.add_argument("--storey", metavar="NAME",
-                   help="IFC: the building storey whose light fixtures to plan (name or elevation in m)")
+    cli.add_reading_flags(p, "reading", "LAYOUT")
     g = p.add_argument_group("planning")
     g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
                    help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
@@ -112,7 +95,6 @@ def main(argv: list[str] | None = None) -> int:
     from planner.pipeline import (
         FirmwareOptions,
         PlanOptions,
-        ReadOptions,
         default_outdir,
         make_plan,
         read_layout,
@@ -123,8 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
                          if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
     t0 = time.perf_counter()
-    read_opts = ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius,
-                            args.room, args.storey)
+    read_opts = cli.read_options(args)
     cli.progress(f"reading {args.layout}")
     layout = read_layout(args.layout, args.leds, read_opts)
     from planner.budget import check_work, plan_work
