@@ -13,11 +13,14 @@ origin at the top-left corner.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+
+from planner import lens
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,13 @@ class Camera:
         Largest tilt of the optical axis from vertical, in any direction [rad].
     row_time_s : float
         Rolling-shutter time between two image rows [s].
+    lens : str
+        Distortion model: ``"pinhole"`` (OpenCV's ``k1 k2 p1 p2 k3``) or ``"fisheye"``
+        (OpenCV's ``k1 k2 k3 k4``); see :mod:`planner.lens`.
+    distortion : tuple of float
+        The model's coefficients in OpenCV's order; empty (or all zero) is the ideal pinhole.
+    name : str
+        The profile the camera came from (``--camera NAME``), or empty.
     """
 
     width_px: int = 4000
@@ -48,6 +58,9 @@ class Camera:
     max_height_m: float = 1.5
     max_tilt_rad: float = math.radians(40.0)
     row_time_s: float = 20e-6
+    lens: str = "pinhole"
+    distortion: tuple[float, ...] = ()
+    name: str = ""
 
     @classmethod
     def from_fov(cls, hfov_rad: float, width_px: int = 4000, height_px: int = 3000, **kw) -> Camera:
@@ -57,7 +70,50 @@ class Camera:
 
     @property
     def hfov_rad(self) -> float:
-        return 2 * math.atan(self.width_px / (2 * self.fx_px))
+        """Horizontal field of view through the principal point [rad], the lens's distortion included."""
+        if not self.distorted:
+            return 2 * math.atan(self.width_px / (2 * self.fx_px))
+        left, right = self.rays(np.array([[0.0, self.cy_px], [float(self.width_px), self.cy_px]]))
+        return math.atan2(-left[0], left[2]) + math.atan2(right[0], right[2])
+
+    @property
+    def distorted(self) -> bool:
+        """Whether the lens distorts (any non-zero coefficient)."""
+        return any(self.distortion)
+
+    @property
+    def dist_coeffs(self) -> np.ndarray:
+        """The distortion coefficients as OpenCV takes them (5 for pinhole, 4 for fisheye)."""
+        return lens.padded(self.lens, self.distortion)
+
+    def ideal(self) -> Camera:
+        """This camera with its distortion ignored (what a receiver that forgets it assumes)."""
+        return dataclasses.replace(self, lens="pinhole", distortion=())
+
+    def project(self, points_cam: np.ndarray) -> np.ndarray:
+        """Pixels (..., 2) [px] of camera-frame points or rays (..., 3), with the lens's distortion."""
+        xy = lens.distort_rays(self.lens, self.distortion, points_cam) if self.distorted else \
+            np.asarray(points_cam, float)[..., :2] / np.asarray(points_cam, float)[..., 2:3]
+        return np.stack([self.fx_px * xy[..., 0] + self.cx_px, self.fy_px * xy[..., 1] + self.cy_px], axis=-1)
+
+    def normalized(self, uv_px: np.ndarray) -> np.ndarray:
+        """Ideal normalised coordinates (..., 2) ``(X/Z, Y/Z)`` of pixels (..., 2) [px], distortion
+        removed (NaN where the lens's map folds)."""
+        uv = np.asarray(uv_px, float)
+        xy_d = np.stack([(uv[..., 0] - self.cx_px) / self.fx_px, (uv[..., 1] - self.cy_px) / self.fy_px], axis=-1)
+        return lens.undistort_normalized(self.lens, self.distortion, xy_d) if self.distorted else xy_d
+
+    def ideal_pixels(self, uv_px: np.ndarray) -> np.ndarray:
+        """Where pixels (..., 2) [px] would be with an ideal lens of the same intrinsics: the bridge from a
+        distorted image to every pinhole formula (the paper's Eq. 1-14, P3P, the disc conics)."""
+        xy = self.normalized(uv_px)
+        return np.stack([self.fx_px * xy[..., 0] + self.cx_px, self.fy_px * xy[..., 1] + self.cy_px], axis=-1)
+
+    def rays(self, uv_px: np.ndarray) -> np.ndarray:
+        """Unit camera-frame rays (..., 3) through pixels (..., 2) [px], distortion removed."""
+        xy = self.normalized(uv_px)
+        r = np.concatenate([xy, np.ones_like(xy[..., :1])], axis=-1)
+        return r / np.linalg.norm(r, axis=-1, keepdims=True)
 
     @property
     def intrinsics(self) -> np.ndarray:
@@ -77,6 +133,8 @@ class Camera:
             "receiver_height_m": [self.min_height_m, self.max_height_m],
             "max_tilt_deg": round(math.degrees(self.max_tilt_rad), 6),
             "row_time_s": self.row_time_s,
+            **({"lens": self.lens, "distortion": [float(k) for k in self.distortion]} if self.distorted else {}),
+            **({"name": self.name} if self.name else {}),
         }
 
     @classmethod
@@ -87,6 +145,9 @@ class Camera:
             "max_height_m": float(d.get("receiver_height_m", [0.5, 1.5])[1]),
             "max_tilt_rad": math.radians(float(d.get("max_tilt_deg", 40.0))),
             "row_time_s": float(d.get("row_time_s", 20e-6)),
+            "lens": str(d.get("lens", "pinhole")),
+            "distortion": tuple(float(k) for k in d.get("distortion", ())),
+            "name": str(d.get("name", "")),
         }
         w, h = int(d.get("width_px", 4000)), int(d.get("height_px", 3000))
         if "fx_px" in d:

@@ -30,6 +30,7 @@ from planner.defaults import (
 )
 from planner.errors import InputError
 from planner.layout.model import name_problem
+from planner.lens import COEFFICIENTS, LENS_MODELS
 from planner.plan import FORMAT
 
 if TYPE_CHECKING:
@@ -106,6 +107,9 @@ class CameraFields(BaseModel):
                              Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)]] = (0.5, 1.5)
     max_tilt_deg: Annotated[Finite, Field(ge=0, lt=80)] = 40.0
     row_time_s: Annotated[Positive, Field(le=1.0)] = 20e-6
+    lens: Literal[LENS_MODELS] = "pinhole"  # type: ignore[valid-type]
+    distortion: Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)] = []
+    name: Annotated[Text, Field(max_length=64)] = ""
 
     @model_validator(mode="after")
     def _heights_in_order(self) -> CameraFields:
@@ -115,6 +119,9 @@ class CameraFields(BaseModel):
         for name, value, size in (("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)):
             if value is not None and not 0 <= value <= size:
                 raise ValueError(f"{name} {value:g} lies outside the {self.width_px} x {self.height_px} px image")
+        if len(self.distortion) > len(COEFFICIENTS[self.lens]):
+            raise ValueError(f"the {self.lens} lens takes at most {len(COEFFICIENTS[self.lens])} distortion "
+                             f"coefficients ({' '.join(COEFFICIENTS[self.lens])}), got {len(self.distortion)}")
         return self
 
     def to_camera(self) -> Camera:

@@ -2,6 +2,7 @@
 ``slow`` marker (``pytest -m "not slow"`` is the fast subset: see the README)."""
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,10 @@ def _shared_plan(tmp_path_factory, name: str, leds: int | None) -> Path:
 
     from planner.cli.plan import main as plan_main
 
-    root = tmp_path_factory.getbasetemp().parent  # shared by every worker of one run
+    base = tmp_path_factory.getbasetemp()
+    # Under xdist each worker's basetemp sits in the run's own directory; without xdist the parent
+    # is shared by every run on the machine (and every checkout), so the plan would go stale.
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
     out = root / "shared-plans" / Path(name).stem
     out.parent.mkdir(exist_ok=True)
     with open(root / "shared-plans" / f"{out.name}.lock", "w") as lock:

@@ -1,0 +1,93 @@
+"""Lens distortion: OpenCV's two models, as plain numpy so that every stage can batch them.
+
+``pinhole``: Brown-Conrady with OpenCV's coefficient order ``k1 k2 p1 p2 k3`` (radial
+``1 + k1 r^2 + k2 r^4 + k3 r^6`` and tangential ``p1 p2`` terms on the normalised image
+coordinates ``x = X/Z, y = Y/Z``). ``fisheye``: OpenCV's fisheye (Kannala-Brandt) model
+``k1 k2 k3 k4``: the ray's angle ``θ`` from the axis maps to ``θ_d = θ (1 + k1 θ^2 + k2 θ^4 +
+k3 θ^6 + k4 θ^8)`` along the same direction. Missing coefficients are zero; an empty tuple
+is the ideal pinhole. Both agree with ``cv2.projectPoints`` / ``cv2.fisheye.projectPoints``
+to 1e-9 px (tests/test_lens.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+LENS_MODELS = ("pinhole", "fisheye")
+COEFFICIENTS = {"pinhole": ("k1", "k2", "p1", "p2", "k3"), "fisheye": ("k1", "k2", "k3", "k4")}
+"""The coefficients each model takes, in OpenCV's order (camera YAML ``distortion: [...]``)."""
+
+
+def padded(model: str, coefficients: tuple[float, ...]) -> np.ndarray:
+    """The coefficients of ``model`` as OpenCV takes them (5 or 4 values, zeros filled in)."""
+    n = len(COEFFICIENTS[model])
+    if len(coefficients) > n:
+        raise ValueError(f"the {model} lens takes at most {n} distortion coefficients "
+                         f"({' '.join(COEFFICIENTS[model])}), got {len(coefficients)}")
+    return np.array([*coefficients, *[0.0] * (n - len(coefficients))], dtype=float)
+
+
+def distort_rays(model: str, coefficients: tuple[float, ...], rays: np.ndarray) -> np.ndarray:
+    """Distorted normalised image coordinates (..., 2) of camera-frame rays or points (..., 3)
+    (in front of the camera, ``Z > 0``; the fisheye model also takes rays at or past 90 deg)."""
+    rays = np.asarray(rays, float)
+    if model == "fisheye":
+        d = padded(model, coefficients)
+        rho = np.hypot(rays[..., 0], rays[..., 1])
+        theta = np.arctan2(rho, rays[..., 2])
+        t2 = theta * theta
+        theta_d = theta * (1 + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3]))))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scale = np.where(rho > 0, theta_d / np.where(rho > 0, rho, 1.0), 1.0 / rays[..., 2])
+        return np.stack([rays[..., 0] * scale, rays[..., 1] * scale], axis=-1)
+    return distort_normalized(model, coefficients, rays[..., :2] / rays[..., 2:3])
+
+
+def distort_normalized(model: str, coefficients: tuple[float, ...], xy: np.ndarray) -> np.ndarray:
+    """Distorted normalised coordinates (..., 2) of ideal normalised coordinates ``xy`` (..., 2)."""
+    xy = np.asarray(xy, float)
+    if model == "fisheye":
+        return distort_rays(model, coefficients, np.concatenate([xy, np.ones_like(xy[..., :1])], axis=-1))
+    k1, k2, p1, p2, k3 = padded(model, coefficients)
+    x, y = xy[..., 0], xy[..., 1]
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return np.stack([xd, yd], axis=-1)
+
+
+def undistort_normalized(model: str, coefficients: tuple[float, ...], xy_d: np.ndarray,
+                         iterations: int = 30) -> np.ndarray:
+    """Ideal normalised coordinates (..., 2) whose distorted image is ``xy_d`` (..., 2): Newton's
+    method on the distortion map, from the distorted point. Where the map folds (a lens pushed past
+    its monotone range) the result is NaN, never a wrong point."""
+    xy_d = np.asarray(xy_d, float)
+    if not np.any(padded(model, coefficients)):
+        return xy_d.copy()
+    if model == "fisheye":
+        d = padded(model, coefficients)
+        theta_d = np.hypot(xy_d[..., 0], xy_d[..., 1])
+        theta = theta_d.copy()
+        for _ in range(iterations):
+            t2 = theta * theta
+            f = theta * (1 + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3])))) - theta_d
+            df = 1 + t2 * (3 * d[0] + t2 * (5 * d[1] + t2 * (7 * d[2] + t2 * 9 * d[3])))
+            theta = theta - f / np.where(df > 0, df, np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scale = np.where(theta_d > 0, np.tan(theta) / np.where(theta_d > 0, theta_d, 1.0), 1.0)
+        scale = np.where((theta >= 0) & (theta < np.pi / 2), scale, np.nan)
+        return xy_d * scale[..., None]
+    xy = xy_d.copy()
+    step = 1e-7
+    for _ in range(iterations):
+        f = distort_normalized(model, coefficients, xy) - xy_d
+        jx = (distort_normalized(model, coefficients, xy + [step, 0]) - f - xy_d) / step
+        jy = (distort_normalized(model, coefficients, xy + [0, step]) - f - xy_d) / step
+        det = jx[..., 0] * jy[..., 1] - jy[..., 0] * jx[..., 1]
+        det = np.where(det > 0, det, np.nan)  # a fold or a flip: no unique ideal point
+        dx = (jy[..., 1] * f[..., 0] - jy[..., 0] * f[..., 1]) / det
+        dy = (-jx[..., 1] * f[..., 0] + jx[..., 0] * f[..., 1]) / det
+        xy = xy - np.stack([dx, dy], axis=-1)
+    residual = np.hypot(*np.moveaxis(distort_normalized(model, coefficients, xy) - xy_d, -1, 0))
+    return np.where((residual < 1e-9)[..., None], xy, np.nan)
