@@ -17,6 +17,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -140,7 +141,7 @@ class Camera:
     @classmethod
     def from_dict(cls, d: dict) -> Camera:
         """Inverse of :meth:`to_dict`; also accepts ``hfov_deg`` without focal lengths."""
-        extra = {
+        extra: dict[str, Any] = {
             "min_height_m": float(d.get("receiver_height_m", [0.5, 1.5])[0]),
             "max_height_m": float(d.get("receiver_height_m", [0.5, 1.5])[1]),
             "max_tilt_rad": math.radians(float(d.get("max_tilt_deg", 40.0))),
