@@ -1,0 +1,123 @@
+"""Camera calibration from chessboard photos: OpenCV's corner finder and Zhang's method.
+
+:func:`find_corners` finds a board's inner corners (``cv2.findChessboardCorners`` on an image
+scaled to about 1,000 px, then ``cv2.cornerSubPix`` at full resolution); :func:`calibrate` fits
+intrinsics and distortion to the corners of every photo the board was found in
+(``cv2.calibrateCamera`` for the ``pinhole`` lens, ``k1 k2 p1 p2 k3``; ``cv2.fisheye.calibrate``
+for ``fisheye``, ``k1..k4``) and reports the RMS reprojection error, overall and per photo.
+Pure: images in, numbers out; reading files is the command line's job.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from planner.camera import Camera
+from planner.errors import InputError
+
+DETECT_PX = 1000
+"""Corners are searched for on a copy scaled to about this many pixels along the long side (fast), then refined at
+full resolution."""
+MIN_VIEWS = 3
+"""Fewest photos with the board found that a calibration takes (Zhang's method needs three views of a plane)."""
+
+
+@dataclass(frozen=True)
+class Board:
+    """A chessboard target: ``cols`` x ``rows`` inner corners, squares ``square_m`` [m] on a side."""
+
+    cols: int
+    rows: int
+    square_m: float
+
+    def points_m(self) -> np.ndarray:
+        """The inner corners on the board's plane (z = 0), in OpenCV's order, (cols * rows, 3) [m]."""
+        grid = np.mgrid[0:self.cols, 0:self.rows].T.reshape(-1, 2)
+        return np.column_stack([grid * self.square_m, np.zeros(len(grid))])
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """What :func:`calibrate` found: the camera, the RMS reprojection error overall and per view [px]."""
+
+    camera: Camera
+    rms_px: float
+    per_view_rms_px: tuple[float, ...]
+
+
+def find_corners(gray: np.ndarray, board: Board) -> np.ndarray | None:
+    """The board's inner corners in the 8-bit grey image (cols * rows, 2) [px], refined to sub-pixel; None if
+    the board is not (wholly) seen."""
+    scale = min(1.0, DETECT_PX / max(gray.shape))
+    small = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else gray
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    found, corners = cv2.findChessboardCorners(small, (board.cols, board.rows), flags=flags)
+    if not found:
+        return None
+    corners = corners.reshape(-1, 1, 2).astype(np.float32)
+    if scale < 1:  # pixel centres: (u + 0.5) / scale - 0.5
+        corners = ((corners + 0.5) / scale - 0.5).astype(np.float32)
+    # The refinement window: a third of the smallest distance between neighbouring corners, at least 3 px.
+    grid = corners.reshape(board.rows, board.cols, 2)
+    spacing = min(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min(), np.linalg.norm(np.diff(grid, axis=1), axis=-1).min())
+    half = int(max(3, min(25, spacing / 3)))
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
+    cv2.cornerSubPix(gray, corners, (half, half), (-1, -1), criteria)
+    return corners.reshape(-1, 2).astype(float)
+
+
+def calibrate(corners: list[np.ndarray], size_px: tuple[int, int], board: Board, lens: str = "pinhole",
+              name: str = "") -> Calibration:
+    """Intrinsics and distortion from the corners of every view (each (cols * rows, 2) [px]) of an image of
+    ``size_px`` (width, height); Zhang's method as OpenCV implements it."""
+    if len(corners) < MIN_VIEWS:
+        raise InputError(f"the board was found in {len(corners)} photo(s); a calibration needs at least "
+                         f"{MIN_VIEWS}, at different tilts")
+    obj = board.points_m()
+    width, height = size_px
+    if lens == "fisheye":
+        k = _fisheye(corners, obj, size_px)
+        fx, fy, cx, cy, dist, rvecs, tvecs = k
+    else:
+        flags = 0
+        rms, mtx, d, rvecs, tvecs = cv2.calibrateCamera([obj.astype(np.float32)] * len(corners),
+                                                        [c.astype(np.float32) for c in corners], size_px, None, None,
+                                                        flags=flags, criteria=(cv2.TERM_CRITERIA_COUNT +
+                                                                               cv2.TERM_CRITERIA_EPS, 200, 1e-12))
+        fx, fy, cx, cy = mtx[0, 0], mtx[1, 1], mtx[0, 2], mtx[1, 2]
+        dist = tuple(float(x) for x in d.ravel()[:5])
+    if not all(map(math.isfinite, (fx, fy, cx, cy, *dist))) or fx <= 0 or fy <= 0:
+        raise InputError("the calibration did not converge: give more photos, with the board tilted in "
+                         "different directions and reaching the image's corners")
+    cam = Camera(width, height, float(fx), float(fy), float(cx), float(cy), lens=lens, distortion=dist, name=name)
+    per_view = []
+    for c, r, t in zip(corners, rvecs, tvecs):
+        rot, _ = cv2.Rodrigues(np.asarray(r, float))
+        seen = cam.project(obj @ rot.T + np.asarray(t, float).reshape(1, 3))
+        per_view.append(float(np.sqrt(np.mean(np.sum((seen - c) ** 2, axis=1)))))
+    errors = np.array(per_view)
+    rms = float(np.sqrt(np.mean(errors**2)))
+    return Calibration(cam, rms, tuple(per_view))
+
+
+def _fisheye(corners: list[np.ndarray], obj: np.ndarray, size_px: tuple[int, int]):
+    """``cv2.fisheye.calibrate``: fx, fy, cx, cy, (k1..k4), rvecs, tvecs."""
+    objs = [obj.reshape(-1, 1, 3).astype(np.float64)] * len(corners)
+    imgs = [c.reshape(-1, 1, 2).astype(np.float64) for c in corners]
+    base = cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
+    criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    for flags in (base | cv2.fisheye.CALIB_CHECK_COND, base):  # the condition check refuses some good sets
+        try:
+            _, mtx, d, rvecs, tvecs = cv2.fisheye.calibrate(objs, imgs, size_px, np.eye(3), np.zeros((4, 1)),
+                                                            flags=flags, criteria=criteria)
+            break
+        except cv2.error:
+            continue
+    else:
+        raise InputError("the fisheye calibration did not converge: give more photos, with the board tilted in "
+                         "different directions and reaching the image's corners")
+    return mtx[0, 0], mtx[1, 1], mtx[0, 2], mtx[1, 2], tuple(float(x) for x in d.ravel()[:4]), rvecs, tvecs
