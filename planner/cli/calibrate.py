@@ -3,7 +3,8 @@
 ``vlp-calibrate IMAGES... --board 9x6 --square-m 0.025 -o phone.yaml`` fits intrinsics and
 distortion (:mod:`planner.calibration.chessboard`); ``--row-time PHOTO --blink-hz F`` measures
 the row time (:mod:`planner.calibration.row_time`), alone or into the same file;
-``--blink-firmware DIR --blink-hz F`` writes the test luminaire's firmware. Exit codes: 0 done,
+``--blink-firmware DIR --blink-hz F`` writes the test luminaire's firmware; ``--heights M=PHOTO...``
+keeps the paper's focal-length-versus-distance fit (:mod:`planner.calibration.heights`). Exit codes: 0 done,
 1 bad input (unreadable photo, board never found, mixed image sizes, no stripes), 2 usage.
 """
 
@@ -53,6 +54,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the blinking test luminaire's firmware (AVR C, ATmega328P) for --blink-hz into DIR")
     g.add_argument("--mcu-clock-hz", type=cli.positive_float, default=16e6, metavar="HZ",
                    help="the test driver's clock, for --blink-firmware (default 16e6)")
+    g = p.add_argument_group("the paper's focal-length fit (section 2.4)")
+    g.add_argument("--heights", nargs="+", metavar="M=PHOTO",
+                   help="level photos of one steady LED, each at a known distance [m] below it: fits f = f0 + k "
+                   "distance (put IMAGES before this flag)")
+    g.add_argument("--led-radius-m", type=cli.positive_float, metavar="M", help="that LED's radius [m], for --heights")
     g = p.add_argument_group("output")
     g.add_argument("-o", "--output", metavar="YAML", help="write the camera YAML here (atomically)")
     cli.add_camera_flag(g, "with --row-time and no IMAGES: the camera whose row time is measured, written to -o")
@@ -90,14 +96,18 @@ def read_gray(path: str) -> np.ndarray:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if not args.images and not args.row_time and not args.blink_firmware:
-        raise UsageError("give chessboard photos (IMAGES...), --row-time PHOTO or --blink-firmware DIR "
-                         "(see vlp-calibrate --help)")
+    if not args.images and not args.row_time and not args.blink_firmware and not args.heights:
+        raise UsageError("give chessboard photos (IMAGES...), --row-time PHOTO, --heights M=PHOTO... or "
+                         "--blink-firmware DIR (see vlp-calibrate --help)")
+    if args.heights and not args.led_radius_m:
+        raise UsageError("--heights needs --led-radius-m, the photographed LED's radius")
+    heights = [_height_shot(item) for item in args.heights or []]
     if (args.row_time or args.blink_firmware) and not args.blink_hz:
         raise UsageError("--row-time and --blink-firmware need --blink-hz, the luminaire's blink rate")
     output = cli.output_file("--output", args.output)
-    if output and not args.images and not args.camera and args.row_time:
-        raise UsageError("--row-time without IMAGES writes -o only with --camera NAME|YAML, the camera it measures")
+    if output and not args.images and not args.camera and (args.row_time or args.heights):
+        raise UsageError(f"{'--row-time' if args.row_time else '--heights'} without IMAGES writes -o only with "
+                         "--camera NAME|YAML, the camera it measures")
     board = parse_board(args.board, args.square_m)
     result: dict = {}
     camera = cli.camera_from_args(args) if args.camera and not args.images else None
@@ -106,6 +116,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.images:
         calibration, result["calibration"] = _calibrate(args.images, board, args.lens, args.name)
         camera = calibration.camera
+    if heights:
+        result["heights"] = _heights(heights, args.led_radius_m, camera)
+        if camera is not None and not args.images:  # a chessboard calibration outranks the paper's fit
+            from dataclasses import replace
+
+            f = result["heights"]["focal_at_mean_px"]
+            camera = replace(camera, fx_px=f, fy_px=f)
     if args.row_time:
         result["row_time"] = _row_time(args.row_time, args.blink_hz, camera)
         if camera is not None:
@@ -169,6 +186,36 @@ def _row_time(path: str, blink_hz: float, camera: Camera | None) -> dict:
             "edge_residual_rows": stripes.residual_rows, "row_time_s": stripes.row_time_s(blink_hz)}
 
 
+def _height_shot(item: str) -> tuple[float, str]:
+    """``M=PHOTO``: the distance below the LED [m] and the photo."""
+    distance, sep, path = item.partition("=")
+    try:
+        value = float(distance)
+    except ValueError:
+        value = math.nan
+    if not sep or not path or not math.isfinite(value) or value <= 0:
+        raise UsageError(f"--heights {item}: give DISTANCE=PHOTO, the distance below the LED in metres (e.g. 1.2=a.jpg)")
+    return value, path
+
+
+def _heights(shots: list[tuple[float, str]], led_radius_m: float, camera: Camera | None) -> dict:
+    from planner.calibration.heights import fit_heights, led_image_radius_px
+
+    radii = []
+    for _, path in shots:
+        gray = read_gray(path)
+        if camera is not None and (gray.shape[1], gray.shape[0]) != (camera.width_px, camera.height_px):
+            raise InputError(f"{path}: {gray.shape[1]} x {gray.shape[0]} px, but the camera has {camera.width_px} x "
+                             f"{camera.height_px}; take the photos in the camera's own mode")
+        radii.append(led_image_radius_px(gray, path))
+    fit = fit_heights([d for d, _ in shots], radii, led_radius_m)
+    mean = sum(fit.distances_m) / len(fit.distances_m)
+    return {"f0_px": fit.f0_px, "k_px_per_m": fit.k_px_per_m, "led_radius_m": led_radius_m, "mean_distance_m": mean,
+            "focal_at_mean_px": fit.focal_at(mean),
+            "shots": [{"photo": p, "distance_m": d, "radius_px": a, "focal_px": f}
+                      for (d, p), a, f in zip(shots, fit.radii_px, fit.focal_px)]}
+
+
 def _blink_firmware(args) -> dict:
     from planner.calibration.blink import blink_timer, write_blink_firmware
 
@@ -191,6 +238,10 @@ def camera_yaml(camera: Camera, result: dict) -> str:
         notes.append(f"# Chessboard: {cal['used']} of {cal['images']} photos used, RMS reprojection error "
                      f"{cal['rms_px']:.3f} px (worst photo {max(e['rms_px'] for e in cal['per_image']):.3f} px); "
                      f"horizontal field of view {cal['hfov_deg']:.2f} deg.")
+    ht = result.get("heights")
+    if ht and not cal:
+        notes.append(f"# Focal length: the paper's fit f = {ht['f0_px']:.2f} + {ht['k_px_per_m']:.3f} px/m x distance "
+                     f"over {len(ht['shots'])} level photos, taken at the mean distance {ht['mean_distance_m']:.2f} m.")
     rt = result.get("row_time")
     if rt:
         notes.append(f"# Row time: stripes {rt['period_rows']:.2f} rows apart at {rt['blink_hz']:g} Hz in {rt['photo']}.")
@@ -217,6 +268,13 @@ def _text(result: dict) -> str:
             lines.append(f"  {e['image']}: {e['rms_px']:.3f} px")
         for path in cal["refused"]:
             lines.append(f"  {path}: refused (no board found)")
+    ht = result.get("heights")
+    if ht:
+        lines.append(f"focal length fit (paper, section 2.4): f = {ht['f0_px']:.2f} px + {ht['k_px_per_m']:.3f} px/m x "
+                     f"distance; {ht['focal_at_mean_px']:.2f} px at the mean {ht['mean_distance_m']:.2f} m")
+        for e in ht["shots"]:
+            lines.append(f"  {e['photo']}: {e['distance_m']:g} m below, image radius {e['radius_px']:.2f} px, "
+                         f"f {e['focal_px']:.2f} px")
     rt = result.get("row_time")
     if rt:
         lines.append(f"row time: {1e6 * rt['row_time_s']:.3f} us (stripes {rt['period_rows']:.2f} rows apart at "

@@ -159,7 +159,7 @@ def _bad_inputs(tmp_path):
     cam = tmp_path / "cam.yaml"  # the camera the row time is for, so that -o is allowed
     cam.write_text("width_px: 400\nheight_px: 300\n")
     return {
-        "no images": ([], 2, "give chessboard photos (IMAGES...), --row-time PHOTO or --blink-firmware DIR"),
+        "no images": ([], 2, "give chessboard photos (IMAGES...), --row-time PHOTO, --heights M=PHOTO... or"),
         "missing file": ([tmp_path / "nope.png"], 1, "nope.png: no such file"),
         "not an image": ([tmp_path / "notes.jpg"], 1, "notes.jpg: not an image OpenCV reads"),
         "mixed sizes": ([good, small], 1, "small.png: 300 x 200 px, but"),
@@ -202,3 +202,26 @@ def test_the_camera_file_holds_what_read_camera_takes(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text(text)
     assert read_camera(path) == PINHOLE
+
+
+def test_the_papers_focal_length_fit_recovers_a_drifting_focal_length(tmp_path):
+    """Section 2.4: level photos of a steady LED 0.8-2.0 m above; autofocus drifts the focal length with distance."""
+    f0, k, radius = 1300.0, -40.0, 0.1
+    shots = []
+    for j, distance in enumerate((0.8, 1.2, 1.6, 2.0)):
+        f = f0 + k * distance
+        camera = Camera(1200, 900, f, f, 600.0, 450.0)
+        image = render_frame(np.array([[0.0, 0.0, distance]]), np.array([radius]), ["1"], 1000.0, camera,
+                             np.zeros(3), rotation_from_angles(0.0, 0.0, 0.0)[0], Sensor(), np.random.default_rng(j)).image
+        cv2.imwrite(str(tmp_path / f"h{j}.png"), image)
+        shots.append(f"{distance}={tmp_path / f'h{j}.png'}")
+    (tmp_path / "cam.yaml").write_text("width_px: 1200\nheight_px: 900\nhfov_deg: 50\n")
+    out = tmp_path / "fit.yaml"
+    done = _run("--heights", *shots, "--led-radius-m", radius, "--camera", tmp_path / "cam.yaml", "-o", out, "--json")
+    assert done.returncode == 0, done.stderr
+    fit = json.loads(done.stdout)["heights"]
+    assert fit["f0_px"] == pytest.approx(f0, rel=0.005) and fit["k_px_per_m"] == pytest.approx(k, abs=5.0)
+    assert all(s["focal_px"] == pytest.approx(f0 + k * s["distance_m"], rel=0.005) for s in fit["shots"])
+    assert read_camera(out).fx_px == pytest.approx(f0 + k * 1.4, rel=0.005)  # at the shots' mean distance
+    bad = _run("--heights", "far=x.png", "--led-radius-m", radius)
+    assert bad.returncode == 2 and "--heights far=x.png: give DISTANCE=PHOTO" in bad.stderr
