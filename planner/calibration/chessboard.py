@@ -80,14 +80,12 @@ def calibrate(corners: list[np.ndarray], size_px: tuple[int, int], board: Board,
     obj = board.points_m()
     width, height = size_px
     if lens == "fisheye":
-        k = _fisheye(corners, obj, size_px)
-        fx, fy, cx, cy, dist, rvecs, tvecs = k
+        fx, fy, cx, cy, dist, rvecs, tvecs = _fisheye(corners, obj, size_px)
     else:
-        flags = 0
-        rms, mtx, d, rvecs, tvecs = cv2.calibrateCamera([obj.astype(np.float32)] * len(corners),
-                                                        [c.astype(np.float32) for c in corners], size_px, None, None,
-                                                        flags=flags, criteria=(cv2.TERM_CRITERIA_COUNT +
-                                                                               cv2.TERM_CRITERIA_EPS, 200, 1e-12))
+        criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+        _, mtx, d, rvecs, tvecs = cv2.calibrateCamera([obj.astype(np.float32)] * len(corners),
+                                                      [c.astype(np.float32) for c in corners], size_px, None, None,
+                                                      criteria=criteria)
         fx, fy, cx, cy = mtx[0, 0], mtx[1, 1], mtx[0, 2], mtx[1, 2]
         dist = tuple(float(x) for x in d.ravel()[:5])
     if not all(map(math.isfinite, (fx, fy, cx, cy, *dist))) or fx <= 0 or fy <= 0:
@@ -99,8 +97,7 @@ def calibrate(corners: list[np.ndarray], size_px: tuple[int, int], board: Board,
         rot, _ = cv2.Rodrigues(np.asarray(r, float))
         seen = cam.project(obj @ rot.T + np.asarray(t, float).reshape(1, 3))
         per_view.append(float(np.sqrt(np.mean(np.sum((seen - c) ** 2, axis=1)))))
-    errors = np.array(per_view)
-    rms = float(np.sqrt(np.mean(errors**2)))
+    rms = float(np.sqrt(np.mean(np.square(per_view))))  # every view has the same number of corners
     return Calibration(cam, rms, tuple(per_view))
 
 
