@@ -1,7 +1,7 @@
 """Camera calibration from chessboard photos: OpenCV's corner finder and Zhang's method.
 
 :func:`find_corners` finds a board's inner corners (``cv2.findChessboardCorners`` on an image
-scaled to about 1,000 px, then ``cv2.cornerSubPix`` at full resolution); :func:`calibrate` fits
+scaled to about 1,000 px, else 2,000 px, then ``cv2.cornerSubPix`` at full resolution); :func:`calibrate` fits
 intrinsics and distortion to the corners of every photo the board was found in
 (``cv2.calibrateCamera`` for the ``pinhole`` lens, ``k1 k2 p1 p2 k3``; ``cv2.fisheye.calibrate``
 for ``fisheye``, ``k1..k4``) and reports the RMS reprojection error, overall and per photo.
@@ -20,8 +20,8 @@ from planner.camera import Camera
 from planner.errors import InputError
 
 DETECT_PX = 1000
-"""Corners are searched for on a copy scaled to about this many pixels along the long side (fast), then refined at
-full resolution."""
+"""Corners are searched for on a copy scaled to about this many pixels along the long side (fast; if the board is not
+found, once more at twice that), then refined at full resolution."""
 MIN_VIEWS = 3
 """Fewest photos with the board found that a calibration takes (Zhang's method needs three views of a plane)."""
 
@@ -52,10 +52,13 @@ class Calibration:
 def find_corners(gray: np.ndarray, board: Board) -> np.ndarray | None:
     """The board's inner corners in the 8-bit grey image (cols * rows, 2) [px], refined to sub-pixel; None if
     the board is not (wholly) seen."""
-    scale = min(1.0, DETECT_PX / max(gray.shape))
-    small = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else gray
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    found, corners = cv2.findChessboardCorners(small, (board.cols, board.rows), flags=flags)
+    for detect_px in (DETECT_PX, 2 * DETECT_PX):  # a board small in a large photo: once more at twice the size
+        scale = min(1.0, detect_px / max(gray.shape))
+        small = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else gray
+        found, corners = cv2.findChessboardCorners(small, (board.cols, board.rows), flags=flags)
+        if found or scale == 1:
+            break
     if not found:
         return None
     corners = corners.reshape(-1, 1, 2).astype(np.float32)
