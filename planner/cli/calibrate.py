@@ -77,7 +77,7 @@ def parse_board(text: str, square_m: float) -> Board:
 
 
 def read_gray(path: str) -> np.ndarray:
-    """The photo at ``path`` as 8-bit grey; one line if it is missing or not an image."""
+    """The photo at ``path`` as 8-bit grey, as the sensor saw it; one line if it is missing or not an image."""
     import cv2
     import numpy as np
 
@@ -88,7 +88,9 @@ def read_gray(path: str) -> np.ndarray:
         data = np.frombuffer(p.read_bytes(), np.uint8)
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
+    # The sensor's own orientation (EXIF rotation ignored): its rows are the rolling shutter's, and the app's frames
+    # come unrotated.
+    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION) if data.size else None
     if image is None:
         raise InputError(f"{path}: not an image OpenCV reads (give JPEG or PNG photos)")
     return image
@@ -105,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     if (args.row_time or args.blink_firmware) and not args.blink_hz:
         raise UsageError("--row-time and --blink-firmware need --blink-hz, the luminaire's blink rate")
     output = cli.output_file("--output", args.output)
+    if output and output.is_dir():
+        raise UsageError(f"--output {args.output}: is a folder; give the camera file's name (e.g. phone.yaml)")
     if output and not args.images and not args.camera and (args.row_time or args.heights):
         raise UsageError(f"{'--row-time' if args.row_time else '--heights'} without IMAGES writes -o only with "
                          "--camera NAME|YAML, the camera it measures")

@@ -189,6 +189,9 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
         assert captured.err.count("\n") == 1 and message in captured.err, (what, captured.err)
         assert "Traceback" not in captured.err and captured.out == "" and not out.exists(), what
     assert not (tmp_path / "fw").exists()
+    (tmp_path / "folder.yaml").mkdir()
+    assert console_main([str(tmp_path / "good.png"), "-o", str(tmp_path / "folder.yaml")]) == 2
+    assert "--output " in capsys.readouterr().err  # a folder is no camera file's name
     argv, code, message = cases["board never found"]
     done = _run(*argv, "-o", tmp_path / "out.yaml")
     assert done.returncode == code and done.stderr.count("\n") == 1 and message in done.stderr
@@ -242,3 +245,22 @@ def test_a_board_small_in_a_large_photo_is_found_on_the_second_try():
                                         - BOARD.square_m)
     truth = camera.project(BOARD.points_m() @ rotation.T + first)
     assert found is not None and np.abs(found - truth).max() < 0.2
+
+
+def _with_exif_orientation(jpeg: bytes, orientation: int) -> bytes:
+    """The JPEG with an EXIF block whose Orientation tag is ``orientation`` (6: shown turned 90 deg clockwise)."""
+    tiff = b"MM\x00\x2a\x00\x00\x00\x08" + b"\x00\x01" + b"\x01\x12\x00\x03\x00\x00\x00\x01" + \
+        orientation.to_bytes(2, "big") + b"\x00\x00" + b"\x00\x00\x00\x00"
+    body = b"Exif\x00\x00" + tiff
+    return jpeg[:2] + b"\xff\xe1" + (len(body) + 2).to_bytes(2, "big") + body + jpeg[2:]
+
+
+def test_photos_are_read_as_the_sensor_saw_them(tmp_path):
+    """A portrait photo's EXIF rotation would turn the shutter's rows into columns: it is ignored."""
+    ok, jpeg = cv2.imencode(".jpg", _stripes(1600, 1200, 12.5e-6, 1000.0, seed=7), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    photo = tmp_path / "portrait.jpg"
+    photo.write_bytes(_with_exif_orientation(jpeg.tobytes(), 6))
+    assert cv2.imread(str(photo), cv2.IMREAD_GRAYSCALE).shape == (1600, 1200)  # what a viewer shows: turned
+    done = _run("--row-time", photo, "--blink-hz", "1000", "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["row_time"]["row_time_s"] == pytest.approx(12.5e-6, rel=0.005)
