@@ -264,3 +264,14 @@ def test_photos_are_read_as_the_sensor_saw_them(tmp_path):
     done = _run("--row-time", photo, "--blink-hz", "1000", "--json")
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["row_time"]["row_time_s"] == pytest.approx(12.5e-6, rel=0.005)
+
+
+def test_the_row_time_survives_gamma_saturation_a_lit_ceiling_and_jpeg(tmp_path):
+    linear = _stripes(1600, 1200, 12.5e-6, 1000.0, seed=3).astype(float)
+    ceiling = 60 + 40 * np.mgrid[0:1200, 0:1600][1] / 1600  # lit, brighter to the right
+    shown = 255 * np.clip((1.6 * linear + ceiling) / 255, 0, 1) ** (1 / 2.2)  # the LED clipped, then sRGB-like gamma
+    photo = tmp_path / "blink.jpg"
+    cv2.imwrite(str(photo), shown.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    done = _run("--row-time", photo, "--blink-hz", "1000", "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["row_time"]["row_time_s"] == pytest.approx(12.5e-6, rel=0.005)
