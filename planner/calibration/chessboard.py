@@ -1,8 +1,9 @@
-"""Camera calibration from chessboard photos: OpenCV's corner finder and Zhang's method.
+"""Camera calibration from chessboard (or ChArUco) photos: OpenCV's corner finders and Zhang's method.
 
 :func:`find_corners` finds a board's inner corners (``cv2.findChessboardCorners`` on an image
-scaled to about 1,000 px, else 2,000 px, then ``cv2.cornerSubPix`` at full resolution); :func:`calibrate` fits
-intrinsics and distortion to the corners of every photo the board was found in
+scaled to about 1,000 px, else 2,000 px, then ``cv2.cornerSubPix`` at full resolution; a ChArUco
+board's by ``cv2.aruco.CharucoDetector``, which needs only part of the board in view);
+:func:`calibrate` fits intrinsics and distortion to the corners of every photo the board was found in
 (``cv2.calibrateCamera`` for the ``pinhole`` lens, ``k1 k2 p1 p2 k3``; ``cv2.fisheye.calibrate``
 for ``fisheye``, ``k1..k4``) and reports the RMS reprojection error, overall and per photo.
 Pure: images in, numbers out; reading files is the command line's job.
@@ -24,15 +25,26 @@ DETECT_PX = 1000
 found, once more at twice that), then refined at full resolution."""
 MIN_VIEWS = 3
 """Fewest photos with the board found that a calibration takes (Zhang's method needs three views of a plane)."""
+MIN_CHARUCO_CORNERS = 6
+"""Fewest ChArUco corners a photo must show to be used (a homography and then some)."""
 
 
 @dataclass(frozen=True)
 class Board:
-    """A chessboard target: ``cols`` x ``rows`` inner corners, squares ``square_m`` [m] on a side."""
+    """A chessboard target: ``cols`` x ``rows`` inner corners, squares ``square_m`` [m] on a side; with a
+    ``dictionary`` (an OpenCV ArUco dictionary's name, e.g. ``DICT_5X5_100``) a ChArUco board, markers ``marker_m``
+    [m] on a side in its white squares, whose corners are found even where the board is partly out of view."""
 
     cols: int
     rows: int
     square_m: float
+    dictionary: str = ""
+    marker_m: float = 0.0
+
+    def charuco(self) -> cv2.aruco.CharucoBoard:
+        """OpenCV's ChArUco board (squares: one more than the inner corners each way)."""
+        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        return cv2.aruco.CharucoBoard((self.cols + 1, self.rows + 1), self.square_m, self.marker_m, d)
 
     def points_m(self) -> np.ndarray:
         """The inner corners on the board's plane (z = 0), in OpenCV's order, (cols * rows, 3) [m]."""
@@ -73,21 +85,34 @@ def find_corners(gray: np.ndarray, board: Board) -> np.ndarray | None:
     return corners.reshape(-1, 2).astype(float)
 
 
-def calibrate(corners: list[np.ndarray], size_px: tuple[int, int], board: Board, lens: str = "pinhole",
+def find_view(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] | None:
+    """The board's corners seen in the photo: their places on the board (N, 3) [m] and in the image (N, 2) [px];
+    None if the board is not found (a chessboard must be wholly in view; a ChArUco board needs 6 corners)."""
+    if not board.dictionary:
+        corners = find_corners(gray, board)
+        return None if corners is None else (board.points_m(), corners)
+    charuco = board.charuco()
+    corners, ids, _, _ = cv2.aruco.CharucoDetector(charuco).detectBoard(gray)
+    if ids is None or len(ids) < MIN_CHARUCO_CORNERS:
+        return None
+    obj = np.asarray(charuco.getChessboardCorners(), float)[np.asarray(ids).ravel()]  # each corner's id is its index
+    return obj, np.asarray(corners, float).reshape(-1, 2)
+
+
+def calibrate(views: list[tuple[np.ndarray, np.ndarray]], size_px: tuple[int, int], lens: str = "pinhole",
               name: str = "") -> Calibration:
-    """Intrinsics and distortion from the corners of every view (each (cols * rows, 2) [px]) of an image of
-    ``size_px`` (width, height); Zhang's method as OpenCV implements it."""
-    if len(corners) < MIN_VIEWS:
-        raise InputError(f"the board was found in {len(corners)} photo(s); a calibration needs at least "
+    """Intrinsics and distortion from every view's corners (board points (N, 3) [m], image points (N, 2) [px]) of
+    an image of ``size_px`` (width, height); Zhang's method as OpenCV implements it."""
+    if len(views) < MIN_VIEWS:
+        raise InputError(f"the board was found in {len(views)} photo(s); a calibration needs at least "
                          f"{MIN_VIEWS}, at different tilts")
-    obj = board.points_m()
     width, height = size_px
     if lens == "fisheye":
-        fx, fy, cx, cy, dist, rvecs, tvecs = _fisheye(corners, obj, size_px)
+        fx, fy, cx, cy, dist, rvecs, tvecs = _fisheye(views, size_px)
     else:
         criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-        _, mtx, d, rvecs, tvecs = cv2.calibrateCamera([obj.astype(np.float32)] * len(corners),
-                                                      [c.astype(np.float32) for c in corners], size_px, None, None,
+        _, mtx, d, rvecs, tvecs = cv2.calibrateCamera([o.astype(np.float32) for o, _ in views],
+                                                      [c.astype(np.float32) for _, c in views], size_px, None, None,
                                                       criteria=criteria)
         fx, fy, cx, cy = mtx[0, 0], mtx[1, 1], mtx[0, 2], mtx[1, 2]
         dist = tuple(float(x) for x in d.ravel()[:5])
@@ -95,19 +120,20 @@ def calibrate(corners: list[np.ndarray], size_px: tuple[int, int], board: Board,
         raise InputError("the calibration did not converge: give more photos, with the board tilted in "
                          "different directions and reaching the image's corners")
     cam = Camera(width, height, float(fx), float(fy), float(cx), float(cy), lens=lens, distortion=dist, name=name)
-    per_view = []
-    for c, r, t in zip(corners, rvecs, tvecs):
+    per_view, squares = [], []
+    for (obj, c), r, t in zip(views, rvecs, tvecs):
         rot, _ = cv2.Rodrigues(np.asarray(r, float))
         seen = cam.project(obj @ rot.T + np.asarray(t, float).reshape(1, 3))
-        per_view.append(float(np.sqrt(np.mean(np.sum((seen - c) ** 2, axis=1)))))
-    rms = float(np.sqrt(np.mean(np.square(per_view))))  # every view has the same number of corners
+        squares.append(np.sum((seen - c) ** 2, axis=1))
+        per_view.append(float(np.sqrt(np.mean(squares[-1]))))
+    rms = float(np.sqrt(np.mean(np.concatenate(squares))))  # over every corner, as OpenCV's
     return Calibration(cam, rms, tuple(per_view))
 
 
-def _fisheye(corners: list[np.ndarray], obj: np.ndarray, size_px: tuple[int, int]):
+def _fisheye(views: list[tuple[np.ndarray, np.ndarray]], size_px: tuple[int, int]):
     """``cv2.fisheye.calibrate``: fx, fy, cx, cy, (k1..k4), rvecs, tvecs."""
-    objs = [obj.reshape(-1, 1, 3).astype(np.float64)] * len(corners)
-    imgs = [c.reshape(-1, 1, 2).astype(np.float64) for c in corners]
+    objs = [o.reshape(-1, 1, 3).astype(np.float64) for o, _ in views]
+    imgs = [c.reshape(-1, 1, 2).astype(np.float64) for _, c in views]
     base = cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
     criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     for flags in (base | cv2.fisheye.CALIB_CHECK_COND, base):  # the condition check refuses some good sets

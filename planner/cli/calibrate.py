@@ -43,6 +43,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="inner corners of the board, across x down (default 9x6: a board of 10 x 7 squares)")
     g.add_argument("--square-m", type=cli.positive_float, default=0.025, metavar="M",
                    help="side of one square [m] (default 0.025; sets the board poses, not the intrinsics)")
+    g.add_argument("--charuco", metavar="DICT",
+                   help="the board is ChArUco with markers of this OpenCV ArUco dictionary (e.g. DICT_5X5_100; "
+                   "--board still counts inner corners), which may be partly out of view")
+    g.add_argument("--marker-m", type=cli.positive_float, metavar="M",
+                   help="with --charuco: side of one marker [m] (default 0.7 x --square-m)")
     g.add_argument("--lens", choices=["pinhole", "fisheye"], default="pinhole",
                    help="distortion model: pinhole (k1 k2 p1 p2 k3, default) or fisheye (k1..k4, lenses past about "
                    "110 deg)")
@@ -67,13 +72,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def parse_board(text: str, square_m: float) -> Board:
+def parse_board(text: str, square_m: float, charuco: str | None = None, marker_m: float | None = None) -> Board:
     from planner.calibration.chessboard import Board
 
     m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
     if not m or min(int(m[1]), int(m[2])) < 2 or max(int(m[1]), int(m[2])) > 100:
         raise UsageError(f"--board {text}: give the inner corners as COLSxROWS, each 2-100 (e.g. 9x6)")
-    return Board(int(m[1]), int(m[2]), square_m)
+    if not charuco:
+        return Board(int(m[1]), int(m[2]), square_m)
+    import cv2
+
+    names = sorted(n for n in dir(cv2.aruco) if re.fullmatch(r"DICT_\d+X\d+_\d+", n))
+    if charuco not in names:
+        raise UsageError(f"--charuco {charuco}: not an ArUco dictionary; known: {', '.join(names)}")
+    marker = marker_m or 0.7 * square_m
+    if marker >= square_m:
+        raise UsageError(f"--marker-m {marker:g}: a marker must be smaller than its square ({square_m:g} m)")
+    return Board(int(m[1]), int(m[2]), square_m, charuco, marker)
 
 
 def read_gray(path: str) -> np.ndarray:
@@ -112,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     if output and not args.images and not args.camera and (args.row_time or args.heights):
         raise UsageError(f"{'--row-time' if args.row_time else '--heights'} without IMAGES writes -o only with "
                          "--camera NAME|YAML, the camera it measures")
-    board = parse_board(args.board, args.square_m)
+    board = parse_board(args.board, args.square_m, args.charuco, args.marker_m)
     result: dict = {}
     camera = cli.camera_from_args(args) if args.camera and not args.images else None
     if args.blink_firmware:
@@ -144,9 +159,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _calibrate(paths: list[str], board: Board, lens: str, name: str):
-    from planner.calibration.chessboard import calibrate, find_corners
+    from planner.calibration.chessboard import calibrate, find_view
 
-    corners, used, refused, size = [], [], [], None
+    views, used, refused, size = [], [], [], None
     for path in paths:
         gray = read_gray(path)
         here = (gray.shape[1], gray.shape[0])
@@ -156,24 +171,27 @@ def _calibrate(paths: list[str], board: Board, lens: str, name: str):
             raise InputError(f"{path}: {here[0]} x {here[1]} px, but {first} is {size[0]} x {size[1]}; calibrate one "
                              "camera mode (resolution) at a time")
         cli.progress(f"finding the board in {path}")
-        found = find_corners(gray, board)
+        found = find_view(gray, board)
         if found is None:
             refused.append(path)
         else:
-            corners.append(found)
+            views.append(found)
             used.append(path)
-    if not corners:
-        raise InputError(f"no chessboard of {board.cols}x{board.rows} inner corners found in any of the {len(paths)} "
+    if not views:
+        kind = f"ChArUco board ({board.dictionary}) of" if board.dictionary else "chessboard of"
+        raise InputError(f"no {kind} {board.cols}x{board.rows} inner corners found in any of the {len(paths)} "
                          "photo(s); check --board (inner corners: a board of 10 x 7 squares has 9x6) and that the "
                          "whole board, with its white margin, is in each photo")
     assert size is not None
-    calibration = calibrate(corners, size, board, lens, name)
+    calibration = calibrate(views, size, lens, name)
     c = calibration.camera
     summary = {"images": len(paths), "used": len(used), "refused": refused, "lens": lens,
                "width_px": c.width_px, "height_px": c.height_px, "fx_px": c.fx_px, "fy_px": c.fy_px,
                "cx_px": c.cx_px, "cy_px": c.cy_px, "distortion": list(c.distortion),
                "hfov_deg": math.degrees(c.hfov_rad), "rms_px": calibration.rms_px,
-               "per_image": [{"image": p, "rms_px": e} for p, e in zip(used, calibration.per_view_rms_px)]}
+               "pattern": f"charuco {board.dictionary}" if board.dictionary else "chessboard",
+               "per_image": [{"image": p, "rms_px": e, "corners": len(v[1])}
+                             for p, e, v in zip(used, calibration.per_view_rms_px, views)]}
     return calibration, summary
 
 
