@@ -76,13 +76,17 @@ def find_corners(gray: np.ndarray, board: Board) -> np.ndarray | None:
     corners = corners.reshape(-1, 1, 2).astype(np.float32)
     if scale < 1:  # pixel centres: (u + 0.5) / scale - 0.5
         corners = ((corners + 0.5) / scale - 0.5).astype(np.float32)
-    # The refinement window: a third of the smallest distance between neighbouring corners, at least 3 px.
     grid = corners.reshape(board.rows, board.cols, 2)
-    spacing = min(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min(), np.linalg.norm(np.diff(grid, axis=1), axis=-1).min())
-    half = int(max(3, min(25, spacing / 3)))
+    _refine(gray, corners, min(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min(),
+                               np.linalg.norm(np.diff(grid, axis=1), axis=-1).min()))
+    return corners.reshape(-1, 2).astype(float)
+
+
+def _refine(gray: np.ndarray, corners: np.ndarray, spacing_px: float) -> None:
+    """``cv2.cornerSubPix`` in place, its window a third of the distance between neighbouring corners (3-25 px)."""
+    half = int(max(3, min(25, spacing_px / 3)))
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
     cv2.cornerSubPix(gray, corners, (half, half), (-1, -1), criteria)
-    return corners.reshape(-1, 2).astype(float)
 
 
 def find_view(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] | None:
@@ -95,8 +99,11 @@ def find_view(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] |
     corners, ids, _, _ = cv2.aruco.CharucoDetector(charuco).detectBoard(gray)
     if ids is None or len(ids) < MIN_CHARUCO_CORNERS:
         return None
-    obj = np.asarray(charuco.getChessboardCorners(), float)[np.asarray(ids).ravel()]  # each corner's id is its index
-    return obj, np.asarray(corners, float).reshape(-1, 2)
+    index = np.asarray(ids).ravel()
+    obj = np.asarray(charuco.getChessboardCorners(), float)[index]  # each corner's id is its index
+    # Not refined again: the detector places them already, and cornerSubPix's window would reach into the markers.
+    img = np.asarray(corners, float)
+    return obj, img.reshape(-1, 2).astype(float)
 
 
 def calibrate(views: list[tuple[np.ndarray, np.ndarray]], size_px: tuple[int, int], lens: str = "pinhole",

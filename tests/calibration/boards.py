@@ -25,9 +25,12 @@ def board_pose(tilt_deg: float, tilt_dir_deg: float, spin_deg: float, centre_m, 
 
 
 def render_board(camera: Camera, board: Board, rotation: np.ndarray, centre: np.ndarray, rng: np.random.Generator,
-                 blur_px: float = 0.8, noise_dn: float = 2.0, rays: np.ndarray | None = None) -> np.ndarray:
+                 blur_px: float = 0.8, noise_dn: float = 2.0, rays: np.ndarray | None = None,
+                 texture: np.ndarray | None = None) -> np.ndarray:
     """The 8-bit grey photo of ``board`` (one square of white margin round it, on a grey wall) whose centre is at
-    ``centre`` [m] in the camera frame, board axes ``rotation`` (board-to-camera)."""
+    ``centre`` [m] in the camera frame, board axes ``rotation`` (board-to-camera). ``texture`` (float32, 0 black
+    .. 1 white, the board's squares only) replaces the chessboard pattern: a ChArUco board, sampled bilinearly.
+    """
     if rays is None:
         rays = pixel_rays(camera)
     sq = board.square_m
@@ -47,6 +50,10 @@ def render_board(camera: Camera, board: Board, rotation: np.ndarray, centre: np.
     margin = [np.clip(np.minimum(uv[..., i] + 1.0, size[i] / sq + 1.0 - uv[..., i]) / np.maximum(foot[..., i], 1e-6)
                       + 0.5, 0, 1) for i in range(2)]
     squares = 0.5 - 0.5 * s[0] * s[1]  # 1 white, 0 black (black corners)
+    if texture is not None:  # a ChArUco board's own image (squares and markers), texels per square as its scale
+        scale = texture.shape[0] / (board.rows + 1)
+        squares = cv2.remap(texture, uv[..., 0] * scale - 0.5, uv[..., 1] * scale - 0.5, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
     on_board = inside[0] * inside[1]
     paper = margin[0] * margin[1]
     white, black, wall = 220.0, 25.0, 110.0
@@ -56,6 +63,13 @@ def render_board(camera: Camera, board: Board, rotation: np.ndarray, centre: np.
         level = cv2.GaussianBlur(level, (0, 0), blur_px)
     level += rng.normal(0.0, noise_dn, level.shape).astype(np.float32)
     return np.clip(np.rint(level), 0, 255).astype(np.uint8)
+
+
+def charuco_texture(board: Board, px_per_square: int = 40) -> np.ndarray:
+    """The ChArUco board's image (float32, 0 black .. 1 white), lightly blurred so that sampling it antialiases."""
+    image = board.charuco().generateImage(((board.cols + 1) * px_per_square, (board.rows + 1) * px_per_square),
+                                          marginSize=0, borderBits=1)
+    return cv2.GaussianBlur(image.astype(np.float32) / 255, (0, 0), 0.6)
 
 
 def pixel_rays(camera: Camera, step_px: int = 4) -> np.ndarray:

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from boards import POSES, board_pose, pixel_rays, render_board
+from boards import POSES, board_pose, charuco_texture, pixel_rays, render_board
 
 from planner.calibration.chessboard import Board
 from planner.camera import Camera, rotation_from_angles
@@ -275,3 +275,23 @@ def test_the_row_time_survives_gamma_saturation_a_lit_ceiling_and_jpeg(tmp_path)
     done = _run("--row-time", photo, "--blink-hz", "1000", "--json")
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["row_time"]["row_time_s"] == pytest.approx(12.5e-6, rel=0.005)
+
+
+def test_a_charuco_board_partly_out_of_view_calibrates_too(tmp_path):
+    """ChArUco (--charuco): photos that cut the board off still count, corner by corner."""
+    board = Board(9, 6, 0.025, "DICT_5X5_100", 0.018)
+    texture, rays, rng, paths = charuco_texture(board, 80), pixel_rays(PINHOLE), np.random.default_rng(4), []
+    for k, (tilt, direction, spin, centre, dist) in enumerate(POSES):
+        rotation, origin = board_pose(tilt, direction, spin, (1.6 * centre[0], 1.6 * centre[1]), dist)
+        image = render_board(PINHOLE, board, rotation, origin, rng, rays=rays, texture=texture)
+        paths.append(tmp_path / f"charuco{k:02d}.png")
+        cv2.imwrite(str(paths[-1]), image)
+    done = _run(*paths, "--charuco", "DICT_5X5_100", "--square-m", "0.025", "--marker-m", "0.018", "--json")
+    assert done.returncode == 0, done.stderr
+    cal = json.loads(done.stdout)["calibration"]
+    assert cal["pattern"] == "charuco DICT_5X5_100" and cal["used"] == len(POSES)
+    assert min(e["corners"] for e in cal["per_image"]) < 20 and max(e["corners"] for e in cal["per_image"]) == 54
+    assert abs(cal["fx_px"] / PINHOLE.fx_px - 1) < 0.005 and abs(cal["fy_px"] / PINHOLE.fy_px - 1) < 0.005
+    assert cal["rms_px"] < 0.3
+    wrong = _run(paths[0], "--charuco", "DICT_9X9_1")
+    assert wrong.returncode == 2 and "--charuco DICT_9X9_1: not an ArUco dictionary; known: DICT_4X4_100" in wrong.stderr
