@@ -231,13 +231,13 @@ def test_the_papers_focal_length_fit_recovers_a_drifting_focal_length(tmp_path):
 
 
 def test_a_board_small_in_a_large_photo_is_found_on_the_second_try():
-    """Too small to find at 1,000 px (asserted), found at 2,000 and refined at full size to its true corners."""
+    """Too small to find at 1,000 px (asserted), found at full size (the second try) and refined to its true corners."""
     from planner.calibration.chessboard import DETECT_PX, find_corners
 
-    camera = Camera(2000, 1500, 1500.0, 1500.0, 1000.0, 750.0, lens="pinhole", distortion=(-0.05, 0.01))
-    rotation, centre = board_pose(20, 30, 10, (0.1, 0.05), 3.2)
+    camera = Camera(1600, 1200, 1200.0, 1200.0, 800.0, 600.0, lens="pinhole", distortion=(-0.05, 0.01))
+    rotation, centre = board_pose(20, 30, 10, (0.1, 0.05), 2.8)
     image = render_board(camera, BOARD, rotation, centre, np.random.default_rng(0), rays=pixel_rays(camera, step_px=8))
-    small = cv2.resize(image, None, fx=DETECT_PX / 2000, fy=DETECT_PX / 2000, interpolation=cv2.INTER_AREA)
+    small = cv2.resize(image, None, fx=DETECT_PX / 1600, fy=DETECT_PX / 1600, interpolation=cv2.INTER_AREA)
     assert not cv2.findChessboardCorners(small, (BOARD.cols, BOARD.rows),
                                          flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)[0]
     found = find_corners(image, BOARD)
