@@ -221,7 +221,7 @@ class SiteAccuracy:
         return {"method": self.method, "noise_px": self.terms.edge_px, "poses": int(len(self.error_m)),
                 "located": int(len(e)), "median_m": q(50), "p90_m": q(90), "max_m": q(100),
                 "cell_m": self.cell_m, "terms": self.terms.to_dict(), "includes": self.terms.active,
-                "budget": {k: {"poses": n, "median_m": m, "p90_m": p} for k, (n, m, p) in self.budget.items()},
+                "budget": {k: {"located": n, "median_m": m, "p90_m": p} for k, (n, m, p) in self.budget.items()},
                 "dominant": self.dominant}
     def cells(self, cell_m: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Cell edges in x and y [m] and the median and 90th-percentile error per cell [m] (NaN: no fix)."""

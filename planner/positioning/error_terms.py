@@ -102,11 +102,11 @@ NO_TERMS = ErrorTerms().only("")
 
 
 def describe(terms: ErrorTerms) -> dict[str, str]:
-    """Each active term's values in words, e.g. ``{"install": "within 2 cm of the drawing"}``."""
+    """Each active term's values in words, e.g. ``{"install": "uniform within 2 cm of the drawing"}``."""
     t = terms
-    text = {"install": f"within {100 * t.install_m:g} cm of the drawing (uniform)",
-            "calibration": f"focal {100 * t.focal_rel:g} %, principal point {t.principal_px:g} px, "
-                           f"distortion residual {t.distortion_px:g} px (1 sigma)",
+    text = {"install": f"uniform within {100 * t.install_m:g} cm of the drawing",
+            "calibration": f"1 sigma: focal length {100 * t.focal_rel:g} %, principal point {t.principal_px:g} px, "
+                           f"distortion residual {t.distortion_px:g} px",
             "edge": f"{t.edge_px:g} px per edge point, then whole pixels",
             "skew": f"phone at {t.speed_m_s:g} m/s turning {math.degrees(t.turn_rad_s):g} deg/s"}
     return {name: text[name] for name in t.active}
