@@ -24,6 +24,7 @@ from planner.positioning.error_terms import (
     NO_TERMS,
     PIXEL_ONLY,
     ErrorTerms,
+    dominant,
     installed,
     observe_with,
     streams,
@@ -102,17 +103,17 @@ def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTe
 
 
 def budget_runs(terms: ErrorTerms) -> dict[str, ErrorTerms]:
-    """The runs of a budget: ``all`` (every term of ``terms``), then each active term alone."""
-    return {"all": terms, **{name: terms.only(name) for name in terms.active}}
+    """The runs of a budget: ``exact`` images (no term: the method's own error), ``all`` (every term of
+    ``terms``), then each active term alone."""
+    return {"exact": NO_TERMS, "all": terms, **{name: terms.only(name) for name in terms.active}}
 
 
 def paper_budget(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTerms = DEFAULT_TERMS,
                  radius_m: float = PAPER_RADIUS_M, seed: int = 0,
                  camera: Camera | None = None) -> dict[str, list[Trials]]:
-    """:func:`paper_experiment` for ``exact`` images (no term: the method's own error) and every run of
-    :func:`budget_runs`, on the same poses."""
-    runs = {"exact": NO_TERMS, **budget_runs(terms)}
-    return {name: paper_experiment(tilts_deg, trials, t, radius_m, seed, camera) for name, t in runs.items()}
+    """:func:`paper_experiment` for every run of :func:`budget_runs`, on the same poses."""
+    return {name: paper_experiment(tilts_deg, trials, t, radius_m, seed, camera)
+            for name, t in budget_runs(terms).items()}
 
 
 def _error(method, seen, xyz, radii, camera, truth) -> float:
@@ -143,18 +144,18 @@ def table3_text(pixel: list[Trials], full: list[Trials]) -> str:
 
 
 def dominant_term(runs: dict[str, list[Trials]], method: str, k: int) -> str | None:
-    """The term whose mean error alone is largest at tilt number ``k`` (runs other than ``exact`` and ``all``)."""
-    alone = {n: stats_cm(rs[k].errors[method])[0] for n, rs in runs.items() if n not in ("exact", "all")}
-    alone = {n: v for n, v in alone.items() if math.isfinite(v)}
-    return max(alone, key=lambda n: alone[n]) if len(alone) > 1 else None
+    """The largest contributor (:func:`~planner.positioning.error_terms.dominant`, on means) at tilt number ``k``."""
+    alone = {n: stats_cm(rs[k].errors[method])[0] for n, rs in runs.items()}
+    return dominant({n: v for n, v in alone.items() if math.isfinite(v)})
 
 
 def budget_text(runs: dict[str, list[Trials]]) -> str:
     """The error budget per method and tilt: mean error [cm] with exact images, each term alone, all together."""
-    names = list(runs)
+    names = [*(n for n in runs if n != "all"), "all"]
     lines = []
     for method in METHODS:
-        lines += [f"error budget, {method} method: mean error [cm] of each term alone", "tilt " + "".join(
+        lines += [f"error budget, {method} method: mean error [cm] with exact images, each term alone, all together",
+                  "tilt " + "".join(
             f"{'exact images' if n == 'exact' else n:>13}" for n in names) + "  dominant"]
         for k, r in enumerate(runs["all"]):
             lines.append(f"{r.tilt_deg:>4.0f} " + "".join(f"{stats_cm(runs[n][k].errors[method])[0]:13.3f}"
@@ -211,9 +212,8 @@ class SiteAccuracy:
 
     @property
     def dominant(self) -> str | None:
-        """The term whose error alone is largest (median), or None with fewer than two terms."""
-        alone = {k: v[1] for k, v in self.budget.items() if k != "all" and v[1] is not None}
-        return max(alone, key=lambda k: alone[k]) if len(alone) > 1 else None
+        """The largest contributor to the error (:func:`~planner.positioning.error_terms.dominant`, on medians)."""
+        return dominant({k: v[1] for k, v in self.budget.items() if v[1] is not None})
 
     def summary(self) -> dict:
         e = self.error_m[np.isfinite(self.error_m)]
@@ -253,8 +253,8 @@ def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, m
                   sample: PoseSample | None = None) -> SiteAccuracy:
     """Error map of ``method`` with ``terms`` over a site: poses sampled as the verification samples them,
     ``per_m2`` of floor but at most :data:`ERROR_MAX_POSES` (the first of ``sample``, a plan's one
-    draw with seed ``seed``, if given); with two or more terms, each alone on the first
-    :data:`BUDGET_MAX_POSES` poses too."""
+    draw with seed ``seed``, if given); with two or more terms, the other runs of :func:`budget_runs`
+    (exact images, each term alone) on the first :data:`BUDGET_MAX_POSES` poses too."""
     from planner.verify.windows import sample_poses, working_area
 
     area = working_area(xyz[:, :2], outline) if sample is None else sample.area

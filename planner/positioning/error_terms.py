@@ -54,8 +54,8 @@ TERMS = {
 """The budget's terms and the :class:`ErrorTerms` fields each is made of."""
 
 TERM_NAMES = {"install": "luminaire install tolerance", "calibration": "camera calibration error",
-              "edge": "edge noise", "skew": "rolling-shutter skew"}
-"""What each term is called in tables and reports."""
+              "edge": "edge noise", "skew": "rolling-shutter skew", "exact": "the method's own error"}
+"""What each term (and the run without any, ``exact``) is called in tables and reports."""
 
 
 @dataclass(frozen=True)
@@ -110,6 +110,20 @@ def describe(terms: ErrorTerms) -> dict[str, str]:
             "edge": f"{t.edge_px:g} px per edge point, then whole pixels",
             "skew": f"phone at {t.speed_m_s:g} m/s turning {math.degrees(t.turn_rad_s):g} deg/s"}
     return {name: text[name] for name in t.active}
+
+
+def dominant(alone: dict[str, float]) -> str | None:
+    """The largest contributor, from the error of each term alone and of ``exact`` images (the method's own).
+
+    A term's contribution is its error alone with the method's own removed in quadrature
+    (independent errors add so), ``sqrt(e_k^2 - e_exact^2)``; the method's own is ``e_exact``.
+    None with fewer than two terms.
+    """
+    base = alone.get("exact", 0.0)
+    share = {k: math.sqrt(max(e * e - base * base, 0.0)) for k, e in alone.items() if k not in ("exact", "all")}
+    if len(share) < 2:
+        return None
+    return max([*share, "exact"], key=lambda k: base if k == "exact" else share[k])
 
 
 def included_text(terms: ErrorTerms) -> str:

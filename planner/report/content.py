@@ -198,7 +198,7 @@ def budget_rows(plan: PlanFile) -> list[tuple[str, str, str, int, str]]:
         b = acc.budget[k]
         name = "all together" if k == "all" else _term_name(k) + (" (dominates)" if k == acc.dominant else "")
         med, p90 = (length_text(v) if v is not None else "-" for v in (b.median_m, b.p90_m))
-        rows.append((name, med, p90, b.located, values.get(k, "")))
+        rows.append((name, med, p90, b.located, values.get(k, "exact images, no error source" if k == "exact" else "")))
     return rows
 
 

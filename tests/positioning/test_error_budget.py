@@ -131,7 +131,7 @@ def test_error_map_of_the_512_plan_is_centimetre_level_and_the_reports_say_what_
     acc = site_accuracy(plan.xyz, plan.radii, plan.outline_xy, plan.camera_model(), per_m2=1.0)
     s = acc.summary()
     assert s["located"] > 80 and 0.005 < s["median_m"] < 0.10 and s["median_m"] < s["p90_m"] < 0.3
-    assert s["includes"] == list(TERMS) and set(s["budget"]) == {"all", *TERMS}
+    assert s["includes"] == list(TERMS) and set(s["budget"]) == {"exact", "all", *TERMS}
     assert s["budget"]["edge"]["median_m"] < 0.001 < s["budget"][s["dominant"]]["median_m"]  # pixel noise: sub-mm
     site = tmp_path / "p512"
     shutil.copytree(plan512_dir, site)
@@ -146,3 +146,13 @@ def test_error_map_of_the_512_plan_is_centimetre_level_and_the_reports_say_what_
         assert "rolling-shutter skew (phone at 0.5 m/s turning 5 deg/s)" in text
         assert "Error budget" in text and "dominates" in text
         assert "pixel noise only" not in text
+
+
+def test_the_dominant_term_is_the_largest_contribution_beyond_the_methods_own_error():
+    from planner.positioning.error_terms import dominant
+
+    assert dominant({"exact": 0.0, "install": 5.0, "skew": 4.0, "all": 7.0}) == "install"
+    # the paper's method under tilt: every term alone is little more than its own 11 cm bias
+    assert dominant({"exact": 11.0, "install": 11.8, "skew": 13.0, "all": 14.0}) == "exact"
+    assert dominant({"exact": 3.0, "install": 5.0, "skew": 4.0}) == "install"
+    assert dominant({"exact": 0.0, "edge": 0.01}) is None
