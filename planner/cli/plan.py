@@ -222,9 +222,12 @@ def _print_summary(s: dict) -> None:
               f"max {length_text(a['max_m'])} over {a['located']} simulated poses, including "
               f"{included_text(ErrorTerms.from_dict(a['terms']))}")
         if a["dominant"]:
-            alone = ", ".join(f"{k} {length_text(v['median_m'])}" for k, v in a["budget"].items()
-                              if k != "all" and v["median_m"] is not None)
-            print(f"  budget   median of each term alone: {alone}; {TERM_NAMES[a['dominant']]} dominates")
+            b = a["budget"]
+            alone = ", ".join(f"{k} {length_text(v['median_m'])}" for k, v in b.items()
+                              if k not in ("all", "exact") and v["median_m"] is not None)
+            exact = b["exact"]["median_m"]
+            print(f"  budget   median with exact images {length_text(exact) if exact is not None else '-'}; each term "
+                  f"alone: {alone}; {TERM_NAMES[a['dominant']]} dominates")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
 
 

@@ -149,8 +149,10 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
         rows.append(("expected error", f"{acc.method} method: none of {acc.poses} sampled poses located"))
     if acc and acc.dominant:
         alone = ", ".join(f"{_term_name(k)} {length_text(b.median_m)}" for k, b in acc.budget.items()
-                          if k != "all" and b.median_m is not None)
-        rows.append(("error budget", f"median of each term alone: {alone}; {_term_name(acc.dominant)} dominates"))
+                          if k not in ("all", "exact") and b.median_m is not None)
+        exact = acc.budget["exact"].median_m if "exact" in acc.budget else None
+        rows.append(("error budget", (f"median with exact images {length_text(exact)}; " if exact is not None else "")
+                     + f"each term alone: {alone}; {_term_name(acc.dominant)} dominates"))
     if mod:
         rows.append(("modulation", f"{mod.line_code}, {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
                                    f"per frame ({1e3 * mod.frame_period_s:.3f} ms), "
