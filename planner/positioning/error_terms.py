@@ -97,7 +97,7 @@ DEFAULT_TERMS = ErrorTerms()
 PIXEL_ONLY = DEFAULT_TERMS.only("edge")
 """Edge noise alone: the model the error map had before the budget."""
 
-NO_TERMS = ErrorTerms().only("")
+NO_TERMS = DEFAULT_TERMS.only("")
 """No error at all: exact images, the method's own error."""
 
 

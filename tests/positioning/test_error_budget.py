@@ -156,3 +156,20 @@ def test_the_dominant_term_is_the_largest_contribution_beyond_the_methods_own_er
     assert dominant({"exact": 11.0, "install": 11.8, "skew": 13.0, "all": 14.0}) == "exact"
     assert dominant({"exact": 3.0, "install": 5.0, "skew": 4.0}) == "install"
     assert dominant({"exact": 0.0, "edge": 0.01}) is None
+
+
+def test_vlp_plan_records_the_terms_it_was_given_and_the_report_names_what_is_left_out(tmp_path, capsys):
+    from conftest import ROOT
+    from planner.cli.plan import main as plan_main
+
+    out = tmp_path / "p"
+    assert plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-firmware", "--no-map",
+                      "--install-error", "0.01", "--phone-speed", "0", "--phone-turn", "0"]) == 0
+    text = capsys.readouterr().out
+    assert "including luminaire install tolerance (uniform within 1 cm of the drawing)" in text
+    acc = load_plan(out / "plan.yaml").accuracy
+    assert acc.terms["install_m"] == 0.01 and acc.terms["speed_m_s"] == 0 and acc.terms["turn_deg_s"] == 0
+    assert acc.includes == ["install", "calibration", "edge"] and set(acc.budget) == {"exact", "all", *acc.includes}
+    assert acc.dominant in acc.includes and 0.001 < acc.median_m < 0.10
+    html = (out / "site-report.html").read_text()
+    assert "leaves out rolling-shutter skew" in html and "<h2 id=\"budget\">Error budget</h2>" in html
