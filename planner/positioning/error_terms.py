@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planner.camera import Camera, disc_dual_conic
 from planner.defaults import (
@@ -199,8 +198,16 @@ def _image_points(rim: np.ndarray, position: np.ndarray, rotation: np.ndarray, i
     for _ in range(2):  # a point's row sets its time, which moves its row (by far under a pixel)
         t = (px[:, 1] - im.camera.cy_px) * im.camera.row_time_s
         cam = (rim - position - t[:, None] * im.velocity_m_s) @ rotation
-        px = im.project(Rotation.from_rotvec(t[:, None] * im.omega_rad_s).inv().apply(cam))
+        rate = float(np.linalg.norm(im.omega_rad_s))
+        turned = _rotate(cam, im.omega_rad_s / rate, -rate * t) if rate > 0 else cam
+        px = im.project(turned)
     return px
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """Vectors (N x 3) each turned about one unit ``axis`` by its own angle (N,) [rad] (Rodrigues' formula)."""
+    c, s = np.cos(angle_rad)[:, None], np.sin(angle_rad)[:, None]
+    return v * c + np.cross(axis, v) * s + np.outer(v @ axis, axis) * (1 - c)
 
 
 def observe_with(position: np.ndarray, rotation: np.ndarray, xyz_installed: np.ndarray, radii: np.ndarray,

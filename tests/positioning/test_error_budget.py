@@ -173,3 +173,14 @@ def test_vlp_plan_records_the_terms_it_was_given_and_the_report_names_what_is_le
     assert acc.dominant in acc.includes and 0.001 < acc.median_m < 0.10
     html = (out / "site-report.html").read_text()
     assert "leaves out rolling-shutter skew" in html and "<h2 id=\"budget\">Error budget</h2>" in html
+
+
+def test_rotating_about_an_axis_matches_scipy():
+    from scipy.spatial.transform import Rotation
+
+    from planner.positioning.error_terms import _rotate
+
+    rng = np.random.default_rng(3)
+    v, axis, angle = rng.normal(size=(50, 3)), np.array([0.6, 0.0, 0.8]), rng.normal(scale=0.3, size=50)
+    angle[0] = 0.0
+    assert np.allclose(_rotate(v, axis, angle), Rotation.from_rotvec(angle[:, None] * axis).apply(v), atol=1e-12)
