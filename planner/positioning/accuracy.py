@@ -111,9 +111,13 @@ def budget_runs(terms: ErrorTerms) -> dict[str, ErrorTerms]:
 def paper_budget(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTerms = DEFAULT_TERMS,
                  radius_m: float = PAPER_RADIUS_M, seed: int = 0,
                  camera: Camera | None = None) -> dict[str, list[Trials]]:
-    """:func:`paper_experiment` for every run of :func:`budget_runs`, on the same poses."""
-    return {name: paper_experiment(tilts_deg, trials, t, radius_m, seed, camera)
-            for name, t in budget_runs(terms).items()}
+    """:func:`paper_experiment` for every run of :func:`budget_runs`, on the same poses (runs with the same
+    terms, such as ``all`` and the one term switched on, are simulated once)."""
+    done: dict[ErrorTerms, list[Trials]] = {}
+    for t in budget_runs(terms).values():
+        if t not in done:
+            done[t] = paper_experiment(tilts_deg, trials, t, radius_m, seed, camera)
+    return {name: done[t] for name, t in budget_runs(terms).items()}
 
 
 def _error(method, seen, xyz, radii, camera, truth) -> float:
@@ -186,7 +190,8 @@ def plot_cdf(results: list[Trials], path) -> None:
 
 
 ERROR_MAX_POSES = 1000
-"""Most poses an error map simulates (about 6 s); larger sites get a sparser sample and larger squares."""
+"""Most poses an error map simulates (about 6 s, pixel noise only; the budget's runs on
+:data:`BUDGET_MAX_POSES` come on top); larger sites get a sparser sample and larger squares."""
 
 ERROR_CELL_M = 1.0
 """Smallest side of the squares over which the error map takes its median and 90th percentile [m];
