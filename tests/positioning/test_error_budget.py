@@ -184,3 +184,16 @@ def test_rotating_about_an_axis_matches_scipy():
     v, axis, angle = rng.normal(size=(50, 3)), np.array([0.6, 0.0, 0.8]), rng.normal(scale=0.3, size=50)
     angle[0] = 0.0
     assert np.allclose(_rotate(v, axis, angle), Rotation.from_rotvec(angle[:, None] * axis).apply(v), atol=1e-12)
+
+
+def test_a_plan_from_before_the_budget_says_its_figures_are_edge_noise_only():
+    from conftest import minimal_plan
+    from planner.report.content import budget_rows, summary
+
+    old = {"method": "perspective", "noise_px": 0.5, "poses": 10, "located": 8, "median_m": 6e-05, "p90_m": 1.5e-04,
+           "max_m": 3e-04, "cell_m": 1.0}
+    plan = minimal_plan([{"name": "A", "id": 1}], accuracy=old)
+    rows = dict(summary(plan, []))
+    assert "median 0.06 mm" in rows["expected error"]
+    assert "includes edge noise (0.5 px) only: install, calibration and motion errors come on top" in rows["expected error"]
+    assert "error budget" not in rows and budget_rows(plan) == []
