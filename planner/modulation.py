@@ -166,10 +166,10 @@ def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: fl
     need = rows_needed(frame_len, row_time_s, flicker_hz, high(row_time_s), video_fps, max_frames)
     if need is not None:
         what.append(f"LED images of at least {need:.1f} rows (larger or closer LEDs, or a narrower lens)")
-    slower = next((t for t in row_time_s * 1.02 ** np.arange(1, 120)
+    slower = next((t for t in np.round(row_time_s * 1e6 + np.arange(1, 500) * 0.1, 1) * 1e-6
                    if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames)), None)
-    if slower is not None:
-        what.append(f"a camera with a row time of at least {slower * 1e6:.1f} us")
+    if slower is not None:  # coverage is not monotonic in the row time: name one that fits
+        what.append(f"a camera with a slower rolling shutter, e.g. a row time of {slower * 1e6:.1f} us")
     if max_frames < MAX_VIDEO_FRAMES and fit_video(frame_len, rows, row_time_s, flicker_hz, high(row_time_s),
                                                    video_fps, MAX_VIDEO_FRAMES):
         what.insert(0, f"--max-video-frames {MAX_VIDEO_FRAMES}")
