@@ -6,11 +6,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import minimal_plan
+from planner.camera import Camera
 from planner.errors import InputError, PlanningError
 from planner.frame import line_code
 from planner.modulation import choose_timing, choose_video_timing, modulate
 from planner.multiframe import EDGE_ROWS, OVERLAP_CHIPS, coverage_margin, fit_video, rows_needed
-from planner.camera import Camera
 
 
 def _read_slots(start: float, window: float, frame_len: int, chip_phase: float) -> set[int]:
