@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from planner.camera import Camera
@@ -184,12 +185,25 @@ def decode_video(images: list[np.ndarray], camera: Camera, modulation: FrameForm
     return out
 
 
+def shaken(rotation: np.ndarray, frames: int, shake_rad: float, rng: np.random.Generator) -> list[np.ndarray]:
+    """A hand's shake: each frame's camera-to-site rotation turned from the last one's by a normal angle of
+    deviation ``shake_rad`` about a random axis (the first frame's is ``rotation``)."""
+    out = [rotation]
+    for _ in range(1, frames):
+        axis = rng.standard_normal(3)
+        turn = cv2.Rodrigues(axis / np.linalg.norm(axis) * rng.normal(0.0, shake_rad))[0]
+        out.append(out[-1] @ turn)
+    return out
+
+
 def run_video_pose(twin: Twin, video: VideoFormat, position: np.ndarray, rotation: np.ndarray, angles_deg,
-                   rng: np.random.Generator, tolerance_m: float) -> tuple[PoseResult, Frame]:
-    """Render ``video.frames`` frames of a still pose, read the IDs over them, locate from frame 0, grade."""
+                   rng: np.random.Generator, tolerance_m: float, shake_rad: float = 0.0) -> tuple[PoseResult, Frame]:
+    """Render ``video.frames`` frames of a pose (still, or turned by ``shake_rad`` per frame), read the IDs over
+    them, locate from frame 0, grade against frame 0's pose."""
     from planner.twin.twin import grade
 
-    frames = render_video(twin, video, [position] * video.frames, [rotation] * video.frames, rng)
+    rotations = shaken(rotation, video.frames, shake_rad, rng) if shake_rad > 0 else [rotation] * video.frames
+    frames = render_video(twin, video, [position] * video.frames, rotations, rng)
     blobs = decode_video([f.image for f in frames], twin.camera, twin.modulation, video,
                          blur_px=twin.sensor.blur_px, exposure_s=twin.sensor.exposure_s)
     return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frames[0]
