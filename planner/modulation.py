@@ -170,6 +170,12 @@ def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: fl
                    if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames)), None)
     if slower is not None:  # coverage is not monotonic in the row time: name one that fits
         what.append(f"a camera with a slower rolling shutter, e.g. a row time of {slower * 1e6:.1f} us")
+    resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
+    faster = next((float(d) for d in np.arange(math.ceil(driver_max_hz / 1e3) + 1, resolution // 1e3 + 1) * 1e3
+                   if fit_video(frame_len, rows, row_time_s, flicker_hz, min(float(d), resolution), video_fps,
+                                max_frames)), None) if driver_max_hz < resolution else None
+    if faster is not None:
+        what.append(f"drivers that switch at least {faster:,.0f} Hz (--driver-max-hz {faster:.0f})")
     if max_frames < MAX_VIDEO_FRAMES and fit_video(frame_len, rows, row_time_s, flicker_hz, high(row_time_s),
                                                    video_fps, MAX_VIDEO_FRAMES):
         what.insert(0, f"--max-video-frames {MAX_VIDEO_FRAMES}")

@@ -94,3 +94,12 @@ def test_old_plans_read_as_single_frame_and_a_half_video_section_is_refused():
     with pytest.raises(InputError, match="video_frames"):
         minimal_plan(lum, modulation={**mod, "video_frames": 5, "video_fps": 30.0})
     assert minimal_plan(lum, modulation={**mod, "video_fps": 30.0}).modulation.video_frames == 3
+
+
+def test_a_driver_too_slow_for_a_fast_shutter_is_named_with_the_rate_that_fits():
+    # the ultrawide profile's 10 us rows on the office (25.3 rows): 20 kHz shows only 4.2 chips a window
+    with pytest.raises(PlanningError, match=r"--driver-max-hz 29000\)"):
+        choose_video_timing(16, 3, 25.3, 10e-6)
+    assert choose_video_timing(16, 3, 25.3, 10e-6, driver_max_hz=29_000).video is not None
+    with pytest.raises(PlanningError):
+        choose_video_timing(16, 3, 25.3, 10e-6, driver_max_hz=28_000)
