@@ -92,7 +92,12 @@ def test_a_site_not_even_four_frames_cover_stops_saying_what_would(tmp_path):
 def test_a_bay_plan_records_k_and_single_frame_is_said(bay, tmp_path):
     summary, path = bay
     assert summary["modulation"]["video_frames"] == 3
-    assert load_plan(path).modulation.video_frames == 3
+    plan = load_plan(path)
+    assert plan.modulation.video_frames == 3
+    from planner.report.content import summary as report_rows
+
+    row = dict(report_rows(plan, []))["modulation"]  # the site report says how the IDs are read
+    assert "read over 3 consecutive video frames at 30 fps" in row
     (tmp_path / "room.yaml").write_text(yaml.safe_dump({**ROOM, "radius": 0.3}))  # big panels: one image holds it
     done = _plan(tmp_path, tmp_path / "room.yaml", WIDE, "--scheme", "unique", "--no-verify")
     assert done.returncode == 0 and "single-frame" in done.stdout
