@@ -27,11 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera, disc_image_rows
-from planner.defaults import DRIVER_MAX_HZ
+from planner.defaults import DRIVER_MAX_HZ, MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
 from planner.layout.model import area_m2
-from planner.multiframe import MAX_VIDEO_FRAMES, VIDEO_FPS, VideoFit, fit_video, rows_needed
+from planner.multiframe import MAX_RATE_HZ, VideoFit, fit_video, rows_needed
 from planner.verify.windows import PoseSample
 
 FLICKER_HZ = 200.0
@@ -166,14 +166,14 @@ def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: fl
     need = rows_needed(frame_len, row_time_s, flicker_hz, high(row_time_s), video_fps, max_frames)
     if need is not None:
         what.append(f"LED images of at least {need:.1f} rows (larger or closer LEDs, or a narrower lens)")
-    slower = next((t for t in np.round(row_time_s * 1e6 + np.arange(1, 500) * 0.1, 1) * 1e-6
+    step_us = max(0.1, round(row_time_s * 1e6 / 100, 1))  # up to three times the row time, 200 tries at most
+    slower = next((t for t in np.round(row_time_s * 1e6 + np.arange(1, 201) * step_us, 1) * 1e-6
                    if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames)), None)
     if slower is not None:  # coverage is not monotonic in the row time: name one that fits
         what.append(f"a camera with a slower rolling shutter, e.g. a row time of {slower * 1e6:.1f} us")
     resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
-    faster = next((float(d) for d in np.arange(math.ceil(driver_max_hz / 1e3) + 1, resolution // 1e3 + 1) * 1e3
-                   if fit_video(frame_len, rows, row_time_s, flicker_hz, min(float(d), resolution), video_fps,
-                                max_frames)), None) if driver_max_hz < resolution else None
+    faster = _fastest_needed(frame_len, rows, row_time_s, flicker_hz, driver_max_hz, resolution, video_fps,
+                             max_frames)
     if faster is not None:
         what.append(f"drivers that switch at least {faster:,.0f} Hz (--driver-max-hz {faster:.0f})")
     if max_frames < MAX_VIDEO_FRAMES and fit_video(frame_len, rows, row_time_s, flicker_hz, high(row_time_s),
@@ -182,6 +182,23 @@ def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: fl
     return (f"nor can it be read over up to {max_frames} video frames at {video_fps:g} fps (the windows of that many "
             f"LED images of {rows:.1f} rows do not cover it); "
             + ("what would: " + ", or ".join(what) if what else "use fewer bits"))
+
+
+def _fastest_needed(frame_len: int, rows: float, row_time_s: float, flicker_hz: float, driver_max_hz: float,
+                    resolution_hz: float, video_fps: float, max_frames: int) -> float | None:
+    """The slowest driver (whole kHz) above ``driver_max_hz`` at which the frames would fit, or None (bisection: a
+    faster driver only adds rates)."""
+    def fits(khz: int) -> bool:
+        return fit_video(frame_len, rows, row_time_s, flicker_hz, min(khz * 1e3, resolution_hz), video_fps,
+                         max_frames) is not None
+
+    lo, hi = math.floor(min(driver_max_hz, MAX_RATE_HZ) / 1e3), math.floor(min(resolution_hz, MAX_RATE_HZ) / 1e3)
+    if hi <= lo or not fits(hi):
+        return None
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if fits(mid) else (mid, hi)
+    return hi * 1e3
 
 
 def modulate(words: np.ndarray, word_bits: int, code: LineCode, rows: float, camera: Camera, *,

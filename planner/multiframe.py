@@ -23,14 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-VIDEO_FPS = 30.0
-"""The receiver's default video frame rate [1/s]."""
+from planner.defaults import MAX_VIDEO_FRAMES, VIDEO_FPS
 
-MAX_VIDEO_FPS = 1000.0
-"""Largest ``--video-fps`` taken (phones film at 24-240 fps)."""
+MAX_RATE_HZ = 1e6
+"""Fastest chip rate considered for reading over video frames [Hz] (LED drivers switch at tens of kHz)."""
 
-MAX_VIDEO_FRAMES = 4
-"""Most consecutive video frames a plan may ask the phone to read a frame over."""
+MAX_RATES = 50_000
+"""Most candidate rates tried: whole hertz, or evenly spaced over a wider range."""
 
 EDGE_ROWS = 2.0
 """Rows at each end of an LED image the receiver does not read (its 1 px margin plus blur)."""
@@ -82,10 +81,13 @@ def coverage_margin(rate_hz: np.ndarray | float, frame_len: int, frames: int, ro
 def fit_video(frame_len: int, rows: float, row_time_s: float, low_hz: float, high_hz: float,
               video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES) -> VideoFit | None:
     """The fewest video frames (2 .. ``max_frames``) and the whole-hertz rate in ``[low_hz, high_hz]``
-    that covers the frame with the widest margin; None if none does."""
-    if low_hz > high_hz:
+    (of at most :data:`MAX_RATES` spread evenly) that covers the frame with the widest margin; None if none does."""
+    high_hz = min(high_hz, MAX_RATE_HZ)
+    if not math.ceil(low_hz) <= high_hz:  # also NaN
         return None
-    rates = np.arange(math.ceil(low_hz), math.floor(high_hz) + 1, dtype=float)
+    first, last = float(math.ceil(low_hz)), float(math.floor(high_hz))
+    rates = (np.unique(np.round(np.linspace(first, last, MAX_RATES))) if last - first >= MAX_RATES
+             else np.arange(first, last + 1.0))
     for frames in range(2, max_frames + 1):
         margin = coverage_margin(rates, frame_len, frames, rows, row_time_s, video_fps)
         if len(rates) and margin.max() >= OVERLAP_CHIPS:

@@ -26,12 +26,13 @@ from planner.defaults import (
     MAX_HEIGHT_M,
     MAX_IMAGE_PX,
     MAX_RADIUS_M,
+    MAX_VIDEO_FPS,
+    MAX_VIDEO_FRAMES,
     MIN_RADIUS_M,
 )
 from planner.errors import InputError
 from planner.layout.model import name_problem
 from planner.lens import COEFFICIENTS, LENS_MODELS
-from planner.multiframe import MAX_VIDEO_FPS, MAX_VIDEO_FRAMES
 from planner.plan import FORMAT
 
 if TYPE_CHECKING:

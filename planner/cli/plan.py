@@ -20,10 +20,12 @@ from planner.defaults import (
     MAX_MCU_CLOCK_HZ,
     MAX_POSES_PER_M2,
     MAX_TIME_LIMIT_S,
+    MAX_VIDEO_FPS,
+    MAX_VIDEO_FRAMES,
     SCHEMES,
+    VIDEO_FPS,
 )
 from planner.errors import ExitCode, UsageError
-from planner.multiframe import MAX_VIDEO_FPS, MAX_VIDEO_FRAMES, VIDEO_FPS
 
 LOW_COVERAGE = 0.5
 """Below this share of decodable poses, vlp-plan warns that the site is poorly covered."""
