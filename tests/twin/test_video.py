@@ -123,3 +123,12 @@ def test_the_twin_reads_ids_over_three_video_frames(bay):
     # near LEDs hold a whole frame and read alone; the far ones needed stitching (their chips: one cycle)
     stitched = sum(1 for r in results for b in r.blobs if b.id is not None and len(b.chips) == len(twin.chips[0]))
     assert stitched >= 0.15 * sum(r.read for r in results)
+
+
+def test_vlp_twin_reads_a_multi_frame_plan_over_its_video_frames(bay):
+    done = subprocess.run(["vlp-twin", str(bay[1]), "--poses", "4", "--jobs", "1", "--json", "--min-success", "0.5"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    s = json.loads(done.stdout)
+    assert s["video_frames"] == 3 and s["video_fps"] == 30.0
+    assert s["ids_misread"] == 0 and s["ids_read"] >= 0.95 * s["blobs_found"]
