@@ -20,13 +20,12 @@ from planner.camera import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
 from planner.codes.schemes import assign_unique, assign_window
-from planner.defaults import INSTALL_TOLERANCE_M, SCHEMES
+from planner.defaults import INSTALL_TOLERANCE_M, MAX_VIDEO_FRAMES, SCHEMES, VIDEO_FPS
 from planner.errors import InputError, UsageError
 from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
-from planner.multiframe import MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
@@ -72,6 +71,7 @@ class PlanOptions:
     install_tolerance_m: float = INSTALL_TOLERANCE_M
     video_fps: float = VIDEO_FPS
     max_video_frames: int = MAX_VIDEO_FRAMES
+    mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -212,7 +212,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     words = check.codewords[index] if check.distance > 1 else index
     rows = smallest_window_image_rows(xyz, radii, cam, sample)
     modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
-                          video_fps=options.video_fps, max_video_frames=options.max_video_frames)
+                          video_fps=options.video_fps, max_video_frames=options.max_video_frames,
+                          mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,

@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
                                          args.driver_max_hz, args.install_tolerance, args.video_fps,
-                                         args.max_video_frames))
+                                         args.max_video_frames, args.mcu_clock_hz))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
