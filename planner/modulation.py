@@ -152,7 +152,8 @@ def choose_video_timing(frame_len: int, max_run: int, rows: float, row_time_s: f
     high = min(resolution, driver_max_hz)
     fit = fit_video(frame_len, rows, row_time_s, flicker, high, video_fps, max_frames, clock_hz)
     if fit is None:
-        raise PlanningError(_video_misfit(frame_len, rows, row_time_s, flicker, driver_max_hz, video_fps, max_frames, clock_hz))
+        raise PlanningError(_video_misfit(frame_len, rows, row_time_s, flicker, driver_max_hz, video_fps, max_frames,
+                                          clock_hz))
     return Timing(fit.chip_rate_hz, frame_len, max_run, rows, row_time_s, 0, flicker, frame_len / (rows * row_time_s),
                   resolution, driver_max_hz, fit)
 
@@ -169,7 +170,8 @@ def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: fl
         what.append(f"LED images of at least {need:.1f} rows (larger or closer LEDs, or a narrower lens)")
     step_us = max(0.1, round(row_time_s * 1e6 / 100, 1))  # up to three times the row time, 200 tries at most
     slower = next((t for t in np.round(row_time_s * 1e6 + np.arange(1, 201) * step_us, 1) * 1e-6
-                   if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames, clock_hz)), None)
+                   if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames,
+                                clock_hz)), None)
     if slower is not None:  # coverage is not monotonic in the row time: name one that fits
         what.append(f"a camera with a slower rolling shutter, e.g. a row time of {slower * 1e6:.1f} us")
     resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
