@@ -107,7 +107,9 @@ def radial_polynomials(coefficients: tuple[float, ...]) -> tuple[Polynomial, Pol
 
 def poly_range(p: Polynomial, s0: float, s1: float) -> tuple[float, float]:
     """Exact minimum and maximum of polynomial ``p`` over ``[s0, s1]`` (ends and real critical points)."""
-    points = [s0, s1] + [float(r.real) for r in p.deriv().roots() if abs(r.imag) < 1e-12 and s0 < r.real < s1]
+    roots = np.asarray(p.deriv().roots(), dtype=complex)
+    inner = roots.real[(np.abs(roots.imag) < 1e-12) & (roots.real > s0) & (roots.real < s1)]
+    points = [s0, s1, *inner.tolist()]
     values = p(np.array(points))
     return float(values.min()), float(values.max())
 
