@@ -106,10 +106,10 @@ def radial_polynomials(coefficients: tuple[float, ...]) -> tuple[Polynomial, Pol
 
 
 def poly_range(p: Polynomial, s0: float, s1: float) -> tuple[float, float]:
-    """Exact minimum and maximum of polynomial ``p`` over ``[s0, s1]`` (ends and real critical points)."""
+    """Exact minimum and maximum of polynomial ``p`` over ``[s0, s1]``: at the ends or a critical point.
+    Every root's real part (clipped to the interval) is tried, so a nearly double root is never lost."""
     roots = np.asarray(p.deriv().roots(), dtype=complex)
-    inner = roots.real[(np.abs(roots.imag) < 1e-12) & (roots.real > s0) & (roots.real < s1)]
-    points = [s0, s1, *inner.tolist()]
+    points = [s0, s1, *np.clip(roots.real, s0, s1).tolist()]
     values = p(np.array(points))
     return float(values.min()), float(values.max())
 
