@@ -56,20 +56,16 @@ def plan256_dir(tmp_path_factory) -> Path:
     return _shared_plan(tmp_path_factory, "grid-256.yaml", None)
 
 
-WIDE_CAMERA = {"width_px": 4000, "height_px": 3000, "fx_px": 2800.0, "fy_px": 2800.0, "lens": "pinhole",
-               "distortion": [-0.2, 0.05]}
-"""A phone's wide lens as the distortion tests take it: 77.3 deg horizontal field of view through the lens,
-barrel distortion k1 = -0.2, k2 = 0.05 (the image corner drawn 16 % towards the centre)."""
+STRONG_WIDE_CAMERA = {"width_px": 4000, "height_px": 3000, "fx_px": 2800.0, "fy_px": 2800.0, "lens": "pinhole",
+                      "distortion": [-0.2, 0.05]}
+"""A camera YAML's fields for a strongly distorting wide lens, stronger than the ``wide`` profile's: 77.3 deg
+horizontal field of view through the lens, barrel k1 = -0.2, k2 = 0.05 (the corner drawn 16 % inwards)."""
 
 
 @pytest.fixture(scope="session")
 def wide_plan_dir(tmp_path_factory) -> Path:
-    """``grid-32.yaml`` planned once for the whole run for :data:`WIDE_CAMERA` (``--camera``); read it only."""
-    import yaml
-
-    camera = tmp_path_factory.getbasetemp() / "wide-camera.yaml"
-    camera.write_text(yaml.safe_dump(WIDE_CAMERA))
-    return _shared_plan(tmp_path_factory, "grid-32.yaml", None, "--camera", str(camera), stem="grid-32-wide")
+    """``grid-32.yaml`` planned once for the whole run with ``--camera wide`` (the profile); read it only."""
+    return _shared_plan(tmp_path_factory, "grid-32.yaml", None, "--camera", "wide", stem="grid-32-wide")
 
 
 def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: float = 0.0,
