@@ -15,6 +15,7 @@ import numpy as np
 
 from planner.camera import Camera
 from planner.ellipse import Ellipse, fit_ellipse
+from planner.errors import PositioningError
 
 RIM_SAMPLES = 64
 """Points taken round each distorted ellipse before it is undistorted and fitted again."""
@@ -31,4 +32,11 @@ def ideal_ellipses(ellipses: list[Ellipse], camera: Camera) -> tuple[list[Ellips
     ellipse's rim undistorted and refitted, with ``camera.ideal()``."""
     if not camera.distorted:
         return ellipses, camera
-    return [fit_ellipse(camera.ideal_pixels(ellipse_points(e))) for e in ellipses], camera.ideal()
+    out = []
+    for k, e in enumerate(ellipses):
+        ideal = camera.ideal_pixels(ellipse_points(e))
+        if np.isnan(ideal).any():
+            raise PositioningError(f"LED {k} (ellipse at {e.cx:.0f}, {e.cy:.0f} px) lies where the camera's lens model "
+                                   "folds: it cannot be undistorted; check the distortion coefficients")
+        out.append(fit_ellipse(ideal))
+    return out, camera.ideal()

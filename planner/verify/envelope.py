@@ -81,7 +81,8 @@ def proved_view(camera: Camera) -> None:
     lies on the sensor and that the lens does not fold over it; :class:`NotProvable` says why not.
 
     For OpenCV's pinhole model with radial terms only, ``ρ(r) = r L(r^2)``, ``L(s) = 1 + k1 s + k2 s^2 +
-    k3 s^3``. If ``dρ/dr > 0`` up to the view's farthest corner (exact minimum of a cubic in ``s``), every
+    k3 s^3``. If ``dρ/dr > 0`` up to the farthest corner of the view and of the image (exact minimum of a
+    cubic in ``s``: the map is monotone over the whole image), every
     point ``t q`` (``q`` on the view's border, ``0 <= t <= 1``) distorts onto the segment from the principal
     point to ``q``'s image; so it is enough that every border point lands on the sensor: on a side at
     ``x = X`` with ``y`` in ``[y0, y1]``, ``|x_d| <= |X| max L`` and ``|y_d| <= |y| max L`` with ``max L`` over
@@ -101,10 +102,14 @@ def proved_view(camera: Camera) -> None:
     x0, x1, y0, y1 = (u0 - cx) / f, (u1 - cx) / f, (v0 - cy) / f, (v1 - cy) / f
     sensor = (-cx / f, (camera.width_px - cx) / f, -cy / f, (camera.height_px - cy) / f)
     big_l, slope = lens.radial_polynomials(camera.distortion)
-    corner2 = max(x0 * x0, x1 * x1) + max(y0 * y0, y1 * y1)
+    corners = camera.normalized(np.array([[0.0, 0.0], [camera.width_px, 0.0], [0.0, camera.height_px],
+                                          [camera.width_px, camera.height_px]], dtype=float))
+    if np.isnan(corners).any():
+        raise NotProvable("the lens's radial map folds inside the image (in its corners, beyond the view)")
+    corner2 = max(max(x0 * x0, x1 * x1) + max(y0 * y0, y1 * y1), float(np.max(np.sum(corners**2, axis=1))))
     if lens.poly_range(slope, 0.0, corner2)[0] <= 0:
-        raise NotProvable("the lens's radial map is not monotone over the image (it folds before the view's "
-                          f"corner, {math.degrees(math.atan(math.sqrt(corner2))):.1f} deg off axis)")
+        raise NotProvable("the lens's radial map is not monotone over the image (it folds before "
+                          f"{math.degrees(math.atan(math.sqrt(corner2))):.1f} deg off axis)")
     t = np.polynomial.Polynomial([0.0, 1.0])  # the coordinate along a side
     for fixed, (lo, hi), (a, b), (c, d) in ((x0, (y0, y1), sensor[:2], sensor[2:]), (x1, (y0, y1), sensor[:2], sensor[2:]),
                                             (y0, (x0, x1), sensor[2:], sensor[:2]), (y1, (x0, x1), sensor[2:], sensor[:2])):

@@ -7,6 +7,7 @@ makes it worse by a measured factor (docs/positioning.md, "Distortion").
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -18,10 +19,13 @@ from planner.camera_file import camera_profile
 from planner.cli.locate import console_main as locate_main
 from planner.cli.plan import console_main as plan_main
 from planner.cli.verify import console_main as verify_main
+from planner.ellipse import Ellipse
+from planner.errors import PositioningError
 from planner.plan_file import load_plan
 from planner.positioning.locate import Site, Snapshot
 from planner.positioning.observation import observe, rim_points
 from planner.positioning.snapshot_file import snapshot_document
+from planner.positioning.undistort import ideal_ellipses
 from planner.verify.envelope import NotProvable, proved_view
 
 WIDE = Camera.from_dict(STRONG_WIDE_CAMERA)
@@ -59,10 +63,18 @@ def test_an_ideal_camera_views_its_whole_sensor():
 @pytest.mark.parametrize("fields, words", [
     ({"distortion": [-0.2, 0.05, 0.001, 0.0]}, "tangential distortion (p1=0.001"),
     ({"lens": "fisheye", "distortion": [0.02, -0.01], "fx_px": 2400.0, "fy_px": 2400.0}, "fisheye lens is verified by sampling"),
+    ({"distortion": [-0.26], "fx_px": 2900.0, "fy_px": 2900.0}, "folds inside the image (in its corners, beyond the view)"),
 ])
 def test_what_the_proof_does_not_cover_says_why(fields, words):
-    with pytest.raises(NotProvable, match=words.replace("(", r"\(")):
+    with pytest.raises(NotProvable, match=re.escape(words)):
         proved_view(_camera(**fields))
+
+
+def test_an_led_where_the_lens_model_folds_is_refused_not_mislocated():
+    folding = _camera(distortion=[-0.26], fx_px=2900.0, fy_px=2900.0)  # folds in the image's corners only
+    corner = Ellipse(3950.0, 2950.0, 40.0, 30.0, 0.3)
+    with pytest.raises(PositioningError, match="where the camera's lens model folds"):
+        ideal_ellipses([Ellipse(2000.0, 1500.0, 40.0, 30.0, 0.0), corner], folding)
 
 
 def test_a_disc_counted_whole_has_its_whole_distorted_rim_on_the_sensor():
