@@ -159,3 +159,19 @@ def blob_documents(site: Site, blobs: list[PhotoBlob], fix: PhotoFix | None) -> 
                        verdict=verdict(b, planned), left_out=k == fix.left_out)
         out.append(doc)
     return out
+
+
+@dataclass(frozen=True)
+class PhotoCheck:
+    """One site photo of the as-built check: its blobs and fix, or why it was not read or located."""
+
+    file: str
+    blobs: list[PhotoBlob]
+    fix: PhotoFix | None  # None: the photo could not be read
+    problem: str  # "" if located
+
+
+def check_photo(site: Site, file: str, blobs: list[PhotoBlob], camera: Camera) -> PhotoCheck:
+    """Locate one decoded site photo for the as-built check."""
+    fix = locate_photo(site, blobs, camera)
+    return PhotoCheck(file, blobs, fix, fix.problem)

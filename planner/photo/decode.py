@@ -48,6 +48,9 @@ FIT_SHARE = 0.25
 BLOOM_PX = 6.0
 """How far [px] blooming may widen a blob: added to the gap the stripe closing bridges and to the fit check's slack."""
 
+NO_ELLIPSE = "too few lit rows for an ellipse"
+MISFIT = "blob and fitted ellipse disagree"
+
 
 @dataclass(frozen=True)
 class PhotoBlob:
@@ -91,16 +94,20 @@ def chips_from_runs(values: np.ndarray, runs: np.ndarray, rows_per_chip: float) 
 
     A saturated LED's lit rows clip, so the halfway threshold of the clipped levels lies
     low on its true edges: every lit run reads some rows too long and every dark run as
-    many too short. The shift ``d`` [rows] (at most half a chip) that brings the runs,
-    lit ones ``- d`` and dark ones ``+ d``, closest to whole chips is taken out before
-    each run becomes ``round(rows / rows_per_chip)`` chips; unclipped stripes give ``d`` near 0.
+    many too short. The shift ``d`` [rows] that brings the runs, lit ones ``- d`` and dark
+    ones ``+ d``, closest to whole chips is taken out before each run becomes
+    ``round(rows / rows_per_chip)`` chips. ``d`` is sought within one chip either way,
+    no run left shorter than half a chip (which tells ``d`` from ``d`` minus a chip), the
+    smaller shift preferred among equals; unclipped stripes give ``d`` near 0.
     """
     if not len(runs):
         return ""
     sign = np.where(values, -1.0, 1.0)
-    shifts = np.linspace(-0.5, 0.5, 101) * rows_per_chip
+    shifts = np.linspace(-1.0, 1.0, 201) * rows_per_chip
     chips = (runs[None] + shifts[:, None] * sign[None]) / rows_per_chip
-    best = shifts[int(np.argmin(np.sum((chips - np.rint(chips)) ** 2, axis=1)))]
+    score = np.sum((chips - np.rint(chips)) ** 2, axis=1) + 1e-3 * np.abs(shifts) / rows_per_chip
+    score[chips.min(axis=1) < 0.5] = np.inf
+    best = shifts[int(np.argmin(score))] if np.isfinite(score).any() else 0.0
     counts = np.maximum(1, np.rint((runs + best * sign) / rows_per_chip)).astype(int)
     return "".join(("1" if v else "0") * int(c) for v, c in zip(values, counts))
 
@@ -121,7 +128,55 @@ def decode_photo(frame: np.ndarray, camera: Camera, modulation: FrameFormat, *, 
         if stats[k][4] >= MIN_BLOB_PX:
             blobs.append(_decode_blob(frame, labels, k, tuple(int(v) for v in stats[k][:4]), level, threshold,
                                       camera, modulation, rows_per_chip, blur_px))
-    return blobs
+    return group_stripes(blobs, gap)
+
+
+def group_stripes(blobs: list[PhotoBlob], gap_rows: float) -> list[PhotoBlob]:
+    """Blobs that are stripes of one light, joined into one blob each.
+
+    A foreign light whose dark stripes are longer than ``gap_rows`` (what this site's
+    frames make) falls apart into one blob per lit stripe: blobs with no ID that are
+    flat (under a quarter as tall as wide; an LED's image is round or oval) or have no
+    ellipse of their own are such fragments. Two fragments belong
+    together when their columns overlap by half the narrower and the rows between
+    them are fewer than half the wider's width (neighbouring LEDs lie further apart). The
+    joined blob's stripe period is the median spacing of its stripes [rows].
+    """
+    loose = [k for k, b in enumerate(blobs)
+             if b.id is None and (b.problem in (NO_ELLIPSE, MISFIT) or b.bbox[3] < 0.25 * b.bbox[2])]
+    group = {k: k for k in loose}
+
+    def root(k: int) -> int:
+        while group[k] != k:
+            k = group[k]
+        return k
+
+    for i in loose:
+        for j in loose:
+            (xa, ya, wa, ha), (xb, yb, wb, hb) = blobs[i].bbox, blobs[j].bbox
+            overlap = min(xa + wa, xb + wb) - max(xa, xb)
+            between = max(ya, yb) - min(ya + ha, yb + hb)
+            if i < j and overlap >= 0.5 * min(wa, wb) and between <= 0.5 * max(wa, wb):
+                group[root(j)] = root(i)
+    members: dict[int, list[int]] = {}
+    for k in loose:
+        members.setdefault(root(k), []).append(k)
+    joined = {}
+    for head, ks in members.items():
+        if len(ks) < 2:
+            continue
+        boxes = np.array([blobs[k].bbox for k in ks])
+        x0, y0 = boxes[:, :2].min(axis=0)
+        x1, y1 = (boxes[:, :2] + boxes[:, 2:]).max(axis=0)
+        centres = np.sort(boxes[:, 1] + boxes[:, 3] / 2)
+        dark = boxes[np.argsort(boxes[:, 1])]
+        longest = int(np.max(dark[1:, 1] - (dark[:-1, 1] + dark[:-1, 3])))
+        joined[head] = PhotoBlob((int(x0), int(y0), int(x1 - x0), int(y1 - y0)), None, None,
+                                 float(np.median(np.diff(centres))), "", None,
+                                 f"{len(ks)} stripes with dark gaps up to {longest} rows, longer than this site's "
+                                 f"frames make ({gap_rows:.0f}): a foreign light (dimmed by PWM?)")
+    dropped = {k for head, ks in members.items() if head in joined for k in ks}
+    return [joined.get(k, b) for k, b in enumerate(blobs) if k not in dropped or k in joined]
 
 
 def _decode_blob(frame: np.ndarray, labels: np.ndarray, k: int, bbox: tuple, level: float, threshold: float,
@@ -137,7 +192,7 @@ def _decode_blob(frame: np.ndarray, labels: np.ndarray, k: int, bbox: tuple, lev
         ellipse = fit_ellipse(pts)
         ideal = fit_ellipse(camera.ideal_pixels(pts)) if camera.distorted else ellipse
     except PositioningError:
-        return PhotoBlob(bbox, None, None, None, "", None, "too few lit rows for an ellipse")
+        return PhotoBlob(bbox, None, None, None, "", None, NO_ELLIPSE)
     plateau = float(np.percentile(roi[own], 90))
     strong = own & (roi > level + FIT_SHARE * (plateau - level))
     touching = x == 0 or y == 0 or x + w >= width or y + h >= height
@@ -145,7 +200,7 @@ def _decode_blob(frame: np.ndarray, labels: np.ndarray, k: int, bbox: tuple, lev
     inside = np.all(ellipse.centre - half >= -BORDER_PX) and np.all(
         ellipse.centre + half <= (width - 1 + BORDER_PX, height - 1 + BORDER_PX))
     if not inside or not _fits_blob(strong, ellipse, x0, y0, slack=4.0 + 3.0 * blur_px + BLOOM_PX):
-        problem = "cut by the image border" if touching or not inside else "blob and fitted ellipse disagree"
+        problem = "cut by the image border" if touching or not inside else MISFIT
         return PhotoBlob(bbox, ellipse, ideal, None, "", None, problem)
     levels = _row_levels(roi, ellipse, x0, y0, margin=1.0 + blur_px)
     values, runs = inner_runs(levels)

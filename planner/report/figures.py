@@ -198,8 +198,10 @@ def _image_page(pdf, title: str, png: bytes | None, missing: str) -> None:
 
 @styled
 def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[str, str]], sections: list[tuple[str, bytes | None, str]],
-              bill: tuple[str, list[str]], checklist: tuple[str, list[str]]) -> None:
-    """Write the report as PDF: a title page with the summary, one page per figure, then the bill and checklist."""
+              bill: tuple[str, list[str]], checklist: tuple[str, list[str]],
+              asbuilt: tuple[str, list[str]] | None = None) -> None:
+    """Write the report as PDF: a title page with the summary, one page per figure, then the bill and checklist
+    (and the as-built photo check, if given)."""
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
@@ -216,3 +218,5 @@ def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[s
             _image_page(pdf, name, png, missing)
         _text_pages(pdf, "ID bill", *bill)
         _text_pages(pdf, "Installers' checklist", *checklist)
+        if asbuilt:
+            _text_pages(pdf, "As-built check", *asbuilt)

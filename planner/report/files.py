@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
+from planner.report.asbuilt import asbuilt_lines
 from planner.report.content import checklist, id_bill, summary, walking_order
 from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
 
@@ -43,26 +44,28 @@ def _render_html(context: dict) -> str:
 
 
 def write_report(plan: PlanFile, plan_hash: str, plan_dir: str | Path, outdir: str | Path,
-                 journal: dict[str, dict] | None = None) -> list[Path]:
+                 journal: dict[str, dict] | None = None, asbuilt: dict | None = None) -> list[Path]:
     """Write the HTML and PDF site report of ``plan`` into ``outdir``; return their paths.
 
     ``plan_dir`` holds the maps drawn with the plan (missing ones are named in
-    their place); ``journal`` maps luminaire names to as-built entries. Names in
+    their place); ``journal`` maps luminaire names to as-built entries; ``asbuilt`` is the photo
+    check (:func:`planner.report.asbuilt.asbuilt_section`), a section of its own. Names in
     scripts the figures' font lacks (CJK) print as boxes in the PNGs and PDF
     without a warning each time; the HTML shows them as they are.
     """
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"Glyph \d+ .* missing from font")
-        return _write_report(plan, plan_hash, Path(plan_dir), Path(outdir), journal)
+        return _write_report(plan, plan_hash, Path(plan_dir), Path(outdir), journal, asbuilt)
 
 
-def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None) -> list[Path]:
+def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None,
+                  asbuilt: dict | None = None) -> list[Path]:
     from planner import __version__
 
     route, _ = walking_order(plan.xy)
     stops = checklist(plan, journal)
     bill = id_bill(plan)
-    head = summary(plan, stops)
+    head = summary(plan, stops) + ([("as-built check", asbuilt["summary"])] if asbuilt else [])
     title = f"VLP site report: {plan.source.get('file', plan_dir.name)}"
     figures = []
     for anchor, file, name, caption in MAPS:
@@ -82,7 +85,9 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
         "title": title, "generator": generator, "plan_hash": plan_hash, "journal_note": journal_note,
         "summary": head, "stops": stops, "bill": bill,
         "contents": [("summary", "Summary")] + [(a, n) for a, n, *_ in figures]
-                    + [("bill", "ID bill"), ("checklist", "Checklist")],
+                    + [("bill", "ID bill"), ("checklist", "Checklist")]
+                    + ([("asbuilt", "As-built check")] if asbuilt else []),
+        "asbuilt": asbuilt,
         "figures": [{"anchor": a, "name": n, "caption": c, "missing": m,
                      "data": base64.b64encode(png).decode("ascii") if png else None}
                     for a, n, png, c, m in figures],
@@ -93,5 +98,5 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     sections = [(n, png, m) for _, n, png, _, m in figures]
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
-        bill_lines(bill), checklist_lines(stops)))
+        bill_lines(bill), checklist_lines(stops), asbuilt_lines(asbuilt) if asbuilt else None))
     return [html_path, pdf_path]
