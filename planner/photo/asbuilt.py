@@ -117,11 +117,13 @@ class Sighting:
     luminaire: int
     plays: int | None
     planned: int
+    problem: str = ""  # why the ID was not read
 
 
 def sightings(photo: str, site: Site, blobs: list[PhotoBlob], fix: PhotoFix) -> list[Sighting]:
     """The luminaires a located photo shows, with what each plays."""
-    return [Sighting(photo, k, b.id, int(site.ids[k])) for b, k in zip(blobs, fix.luminaire) if k is not None]
+    return [Sighting(photo, k, b.id, int(site.ids[k]), b.problem) for b, k in zip(blobs, fix.luminaire)
+            if k is not None]
 
 
 def luminaire_status(seen: list[Sighting]) -> dict[int, tuple[str, list[Sighting]]]:

@@ -35,7 +35,8 @@ def asbuilt_section(site: Site, checks: list[PhotoCheck]) -> dict:
     for k, (status, mine) in luminaire_status(seen).items():
         plays = sorted({s.plays for s in mine if s.plays is not None and s.plays != s.planned})
         lums.append({"name": site.names[k], "planned_id": int(site.ids[k]), "status": status,
-                     "plays": plays, "photos": sorted({s.photo for s in mine})})
+                     "plays": plays, "photos": sorted({s.photo for s in mine}),
+                     "why_unread": next((s.problem for s in mine if s.problem), "") if status == "unread" else ""})
     lums.sort(key=lambda r: (r["status"] != "wrong", r["status"] != "unread", r["name"]))
     counts = {s: sum(r["status"] == s for r in lums) for s in STATUS_TEXT}
     located = sum(p["located"] for p in photos)
@@ -49,10 +50,12 @@ def asbuilt_section(site: Site, checks: list[PhotoCheck]) -> dict:
 
 def asbuilt_lines(section: dict) -> tuple[str, list[str]]:
     """The check as a header and fixed-width text lines for the PDF: the luminaires seen, then the photos."""
-    header = f"{'luminaire':<14} {'ID':>4}  {'status':<22} photos"
-    lines = [f"{r['name']:<14} {r['planned_id']:>4}  "
-             f"{STATUS_TEXT[r['status']] + (' ' + ','.join(map(str, r['plays'])) if r['plays'] else ''):<22} "
-             f"{' '.join(r['photos'])}" for r in section["luminaires"]]
+    w = max([len(r["name"]) for r in section["luminaires"]] + [9])
+    header = f"{'luminaire':<{w}} {'ID':>4}  {'status':<24} photos"
+    lines = [f"{r['name']:<{w}} {r['planned_id']:>4}  "
+             f"{STATUS_TEXT[r['status']] + (' ' + ','.join(map(str, r['plays'])) if r['plays'] else ''):<24} "
+             f"{' '.join(r['photos'])}" + (f" ({r['why_unread']})" if r["why_unread"] else "")
+             for r in section["luminaires"]]
     lines += ["", section["summary"], ""]
     for p in section["photos"]:
         where = (f"at ({', '.join(f'{v:.2f}' for v in p['position_m'])}) m, tilt {p['tilt_deg']:g} deg"

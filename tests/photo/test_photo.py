@@ -225,6 +225,10 @@ def test_bad_photos_are_one_line_each(plan, tmp_path, capsys):
         assert locate_main([str(plan), "--image", image]) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("vlp-locate: error: ") and what in err[0], err
+    ours = tmp_path / "ours.png"  # the plan's camera's size, but another camera named
+    cv2.imwrite(str(ours), np.zeros((3000, 4000), np.uint8))
+    assert locate_main([str(plan), "--image", str(ours), "--camera", "main"]) == 1
+    assert "4000 x 3000 px but camera 'main' takes 4032 x 3024 px" in capsys.readouterr().err
     assert locate_main([str(plan), "obs.json", "--image", str(small)]) == 2
     assert locate_main([str(plan), "obs.json", "--camera", "x.yaml"]) == 2
     from planner.cli.report import console_main as report_main
