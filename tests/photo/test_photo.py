@@ -181,6 +181,10 @@ def test_the_as_built_check_flags_the_luminaire_playing_a_wrong_id(plan, tmp_pat
     assert [(r["name"], r["planned_id"], r["plays"], r["photos"]) for r in flagged] == [(wrong, planned, [plays], showing)]
     right = {r["name"] for r in check["luminaires"] if r["status"] == "right"}
     assert right == (set(seen) | set(_seen(plan, POSE))) - {wrong}
+    one = _run("vlp-locate", str(plan), "--image", str(photos / "wrong.JPG"), "--json")  # located on the others
+    assert one.returncode == 0 and f"luminaire {wrong} plays ID {plays}, planned {planned}" in one.stderr
+    left = [b for b in json.loads(one.stdout)["photo"]["blobs"] if b["left_out"]]
+    assert [(b["luminaire"], b["id"], b["verdict"]) for b in left] == [(wrong, plays, "wrong")]
     html = (out_dir / "site-report.html").read_text()
     assert 'id="asbuilt"' in html and f"<td>{wrong}</td>" in html and "plays a wrong ID" in html
     pdf = subprocess.run(["pdftotext", str(out_dir / "site-report.pdf"), "-"], capture_output=True, text=True).stdout
