@@ -59,6 +59,9 @@ def locate_photo(site: Site, blobs: list[PhotoBlob], camera: Camera, method: str
     """Locate a photo on ``site`` from its blobs with ``method``, leaving out one whose ID fits no place if need be."""
     use = read_and_planned(blobs, site)
     none: list[int | None] = [None] * len(blobs)
+    if not blobs:
+        return PhotoFix(None, "no LED blobs in the photo (nothing stands out from the ceiling); photograph the "
+                        "luminaires, with a short exposure", none)
     if len(use) < 3:
         return PhotoFix(None, f"{len(use)} of {len(blobs)} LED blobs decoded to an ID of the plan: a position needs "
                         "three", none)
