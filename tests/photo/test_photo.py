@@ -233,6 +233,10 @@ def test_bad_photos_are_one_line_each(plan, tmp_path, capsys):
     cv2.imwrite(str(ours), np.zeros((3000, 4000), np.uint8))
     assert locate_main([str(plan), "--image", str(ours), "--camera", "main"]) == 1
     assert "4000 x 3000 px but camera 'main' takes 4032 x 3024 px" in capsys.readouterr().err
+    grey = tmp_path / "ceiling.jpg"  # a lit ceiling, no LEDs
+    cv2.imwrite(str(grey), np.full((3000, 4000, 3), 120, np.uint8))
+    assert locate_main([str(plan), "--image", str(grey)]) == 3
+    assert "no LED blobs in the photo" in capsys.readouterr().err
     assert locate_main([str(plan), "obs.json", "--image", str(small)]) == 2
     assert locate_main([str(plan), "obs.json", "--camera", "x.yaml"]) == 2
     from planner.cli.report import console_main as report_main
