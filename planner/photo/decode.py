@@ -15,8 +15,13 @@ What a photo adds:
   pinhole of the same intrinsics puts them (:meth:`Camera.ideal_pixels`) and a second
   ellipse is fitted there: a disc's image through a pinhole is exactly a conic, so
   positioning gets an exact ellipse and the ideal camera.
+- **Clipping bias.** A saturated LED's lit stripes read longer and its dark ones
+  shorter; the shift is found and taken out before runs become chips
+  (:func:`chips_from_runs`).
 - **A stripe period.** The median length [rows] of one lit plus the next dark run,
-  for foreign LEDs too: a PWM-dimmed lamp's period, or two to three chips of ours.
+  for foreign LEDs too: a PWM-dimmed lamp's period, or two to four chips of ours. A
+  lamp whose dark stripes are longer than this site's frames make falls apart into
+  one blob per stripe; they are joined again (:func:`group_stripes`).
 """
 
 from __future__ import annotations
@@ -46,7 +51,7 @@ FIT_SHARE = 0.25
 """Share of a blob's plateau (above the ceiling) a pixel must reach to count in the fit check; blooming's halo stays below."""
 
 BLOOM_PX = 6.0
-"""How far [px] blooming may widen a blob: added to the gap the stripe closing bridges and to the fit check's slack."""
+"""How far [px] blooming may widen a blob: added to the fit check's slack and to the blob's margin."""
 
 NO_ELLIPSE = "too few lit rows for an ellipse"
 MISFIT = "blob and fitted ellipse disagree"
@@ -70,7 +75,7 @@ class PhotoBlob:
 
 
 def inner_runs(levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The runs of a row-level sequence thresholded halfway (as :func:`chips_from_levels`): each whole run's
+    """The runs of a row-level sequence thresholded halfway (as :func:`planner.twin.receiver.chips_from_levels`): each whole run's
     value (lit or dark) and length [rows], the partial runs at both ends dropped; empty without contrast."""
     levels = levels[np.isfinite(levels)]
     if len(levels) < 4:
@@ -190,7 +195,10 @@ def _decode_blob(frame: np.ndarray, labels: np.ndarray, k: int, bbox: tuple, lev
     pts = _rim_points(roi, own, threshold, level) + (x0, y0)
     try:
         ellipse = fit_ellipse(pts)
-        ideal = fit_ellipse(camera.ideal_pixels(pts)) if camera.distorted else ellipse
+        ideal = ellipse
+        if camera.distorted:  # where the lens's map folds (far outside its field) ideal_pixels is NaN
+            moved = camera.ideal_pixels(pts)
+            ideal = fit_ellipse(moved[np.isfinite(moved).all(axis=1)])
     except PositioningError:
         return PhotoBlob(bbox, None, None, None, "", None, NO_ELLIPSE)
     plateau = float(np.percentile(roi[own], 90))
