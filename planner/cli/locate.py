@@ -31,7 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(
         prog="vlp-locate",
         description="Locate a receiver on a planned site from the LED ellipses it saw (IDs decoded, ellipses "
-        "fitted; format in docs/positioning.md). Luminaires are identified from the plan as the receiver would.",
+        "fitted; format in docs/positioning.md), or from a phone photo of the ceiling (--image; docs/photos.md). "
+        "Luminaires are identified from the plan as the receiver would.",
         epilog="Exit codes: 0 position found, 3 no trustworthy position, 1 bad input, 2 usage error.",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan")

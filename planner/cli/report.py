@@ -26,7 +26,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="vlp-report",
         description="Rebuild a plan's site report (site-report.html, self-contained, and site-report.pdf): "
         "summary, site map, coverage, expected error, frame timing, walking route, ID bill and the installers' "
-        "checklist with each driver's flashing status from the as-built journal.",
+        "checklist with each driver's flashing status from the as-built journal; with --photos, the as-built "
+        "check of which luminaires play their planned ID.",
         epilog="Exit codes: 0 report written, 3 report written but --photos shows a luminaire playing a wrong ID, "
         "1 bad input, 2 usage error.",
     )
