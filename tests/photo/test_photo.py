@@ -5,7 +5,7 @@ A "photograph" is the twin's linear rendering of a flashed plan
 2.5 times brighter than the sensor's full scale (clipped), blooming (a 5 % halo,
 12 px wide), a lit ceiling (20 % of full scale, brighter towards one side, a
 vignette), warm ceiling and cool LED colour, shot and read noise, sRGB gamma, 8 bits
-and JPEG at quality 85. The commands run as installed, on the files.
+and JPEG at quality 85 (one photo PNG). The commands run as installed, on the files.
 """
 
 import json
@@ -53,8 +53,9 @@ def _srgb_encode(linear: np.ndarray) -> np.ndarray:
 
 
 def photograph(plan_path, pose, path, chips=None, seed=0, overexposure=2.5, quality=85):
-    """Write the JPEG a phone at ``pose`` takes of the flashed plan (``chips``: each luminaire's frame, default
-    the plan's); return the camera's true position [m] and how many LEDs the frame shows (some cut by its border)."""
+    """Write the JPEG (PNG if ``path`` ends so) a phone at ``pose`` takes of the flashed plan (``chips``: each
+    luminaire's frame, default the plan's); return the camera's true position [m] and how many LEDs the frame
+    shows (some cut by its border)."""
     twin = Twin.from_plan(load_plan(plan_path))
     position = np.array(pose[:3])
     rotation = rotation_from_angles(*np.radians(pose[3:]))[0]
@@ -72,8 +73,9 @@ def photograph(plan_path, pose, path, chips=None, seed=0, overexposure=2.5, qual
     encoded = _srgb_encode(bgr)
     encoded *= np.float32(255)
     encoded += rng.standard_normal(bgr.shape, dtype=np.float32) * np.float32(1.5)  # read noise after the tone curve
-    ok, data = cv2.imencode(".jpg", np.clip(np.rint(encoded), 0, 255).astype(np.uint8),
-                            [cv2.IMWRITE_JPEG_QUALITY, quality])
+    png = path.suffix.lower() == ".png"  # else JPEG at ``quality``
+    ok, data = cv2.imencode(".png" if png else ".jpg", np.clip(np.rint(encoded), 0, 255).astype(np.uint8),
+                            [] if png else [cv2.IMWRITE_JPEG_QUALITY, quality])
     path.write_bytes(data.tobytes())
     return position, len(frame.drawn)
 
@@ -169,15 +171,15 @@ def test_the_as_built_check_flags_the_luminaire_playing_a_wrong_id(plan, tmp_pat
     photos = tmp_path / "photos"
     photos.mkdir()
     photograph(plan, WRONG_POSE, photos / "wrong.JPG", chips=chips, seed=1)
-    photograph(plan, POSE, photos / "right.jpg", chips=chips, seed=2)
+    photograph(plan, POSE, photos / "right.png", chips=chips, seed=2)
     (photos / "notes.txt").write_text("not a photo")
     out_dir = tmp_path / "report"
     done = _run("vlp-report", str(plan), "--photos", str(photos), "-o", str(out_dir), "--json")
     assert done.returncode == 3, done.stderr  # the report is written; a wrong ID fails the check
     check = json.loads(done.stdout)["asbuilt"]
-    assert check["located_photos"] == 2 and [p["file"] for p in check["photos"]] == ["right.jpg", "wrong.JPG"]
+    assert check["located_photos"] == 2 and [p["file"] for p in check["photos"]] == ["right.png", "wrong.JPG"]
     flagged = [r for r in check["luminaires"] if r["status"] == "wrong"]
-    showing = sorted(name for name, pose in (("right.jpg", POSE), ("wrong.JPG", WRONG_POSE)) if wrong in _seen(plan, pose))
+    showing = sorted(name for name, pose in (("right.png", POSE), ("wrong.JPG", WRONG_POSE)) if wrong in _seen(plan, pose))
     assert [(r["name"], r["planned_id"], r["plays"], r["photos"]) for r in flagged] == [(wrong, planned, [plays], showing)]
     right = {r["name"] for r in check["luminaires"] if r["status"] == "right"}
     assert right == (set(seen) | set(_seen(plan, POSE))) - {wrong}
