@@ -27,6 +27,7 @@ from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
 from planner.twin.receiver import Blob, FrameFormat, decode_frame, read_blobs, snapshot
 from planner.twin.render import Frame, Sensor, render_frame
+from planner.twin.video import VideoFormat, run_video_pose
 
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
@@ -47,6 +48,7 @@ class Twin:
     camera: Camera
     sensor: Sensor = Sensor()
     outline: list | None = None
+    video: VideoFormat | None = None  # frames read over several video frames (planner.twin.video)
 
     @classmethod
     def from_plan(cls, plan: PlanFile, sensor: Sensor = Sensor()) -> Twin:
@@ -54,7 +56,8 @@ class Twin:
         if chips is None:
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
-        return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), plan.camera_model(), sensor, plan.outline)
+        return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), plan.camera_model(), sensor, plan.outline,
+                   VideoFormat.from_plan(plan))
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,22 @@ def _truth(twin: Twin, position: np.ndarray, rotation: np.ndarray) -> tuple[np.n
     front = project_discs_at(position[None], rotation[None], site.xyz[None], site.radii[None], twin.camera)["in_front"][0]
     index = np.flatnonzero(ok & front)
     whole = seen_leds(position, rotation, site.xyz, site.radii, twin.camera)
-    return index, centres[index], np.linalg.eigvalsh(shapes[index])[:, 0], whole
+    minor = np.linalg.eigvalsh(shapes[index])[:, 0]
+    if twin.camera.distorted:  # the images through the lens: centre moved, minor axis scaled by the local map
+        centres, minor = _through_lens(twin.camera, centres[index], minor)
+        return index, centres, minor, whole
+    return index, centres[index], minor, whole
+
+
+def _through_lens(camera: Camera, ideal_px: np.ndarray, minor_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the lens puts ideal image centres [px], and minor semi-axes scaled by the map's least stretch there."""
+    step = 0.5
+    at = camera.distorted_pixels(ideal_px)
+    du = (camera.distorted_pixels(ideal_px + [step, 0.0]) - at) / step
+    dv = (camera.distorted_pixels(ideal_px + [0.0, step]) - at) / step
+    jac = np.stack([du, dv], axis=-1)  # (N, 2, 2): columns d/du, d/dv
+    least = np.linalg.svd(jac, compute_uv=False)[:, -1] if len(jac) else np.ones(0)
+    return at, minor_px * least
 
 
 def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, blobs: list[Blob],
@@ -145,7 +163,9 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
 
 def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, rng: np.random.Generator,
              tolerance_m: float = TOLERANCE_M) -> tuple[PoseResult, Frame]:
-    """Render the pose's frame, decode it, locate, and grade the result."""
+    """Render the pose's frame (a multi-frame plan's video frames), decode it, locate, and grade the result."""
+    if twin.video is not None:
+        return run_video_pose(twin, twin.video, position, rotation, angles_deg, rng, tolerance_m)
     frame = render_frame(twin.site.xyz, twin.site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera,
                          position, rotation, twin.sensor, rng)
     blobs = decode_frame(frame.image, twin.camera, twin.modulation, blur_px=twin.sensor.blur_px,
