@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.advice import COVERAGE_GOAL, Site, advise
 from planner.budget import plan_sample_per_m2
 from planner.camera import Camera
 from planner.codes.assignment import assign_paper
@@ -69,6 +70,7 @@ class PlanOptions:
     line_code: str = "manchester"
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
+    coverage_goal: float = COVERAGE_GOAL
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -213,7 +215,12 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
                                  per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample)
-    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation)
+    advice = None
+    if verification is not None:
+        filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
+        advice = advise(Site(xyz, radii, layout.outline, cam, filled=filled), verification.coverage,
+                        goal=options.coverage_goal, seed=options.seed)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice)
 
 
 def default_outdir(layout_path: str | Path) -> Path:

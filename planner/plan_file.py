@@ -173,6 +173,7 @@ class PlanFile(_Section):
     schemes_considered: dict[str, Any] | None = None
     camera: CameraFields = CameraFields()
     verification: Verification | None = None
+    advice: dict[str, Any] | None = None
     modulation: ModulationFields | None = None
     accuracy: Accuracy | None = None
     outline: list[tuple[Coordinate, Coordinate]] | None = None
