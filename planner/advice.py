@@ -22,14 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera
+from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2, fill_outline
 from planner.verify.windows import find_windows, sample_poses, working_area
-
-COVERAGE_GOAL = 0.9
-"""Default share of sampled poses a site should decode at (``--coverage-goal``)."""
-
-USABLE_COVERAGE = 0.5
-"""Below this share of decodable sampled poses a plan is reported NOT USABLE."""
 
 ADVICE_POSES_PER_M2 = 10.0
 """Pose density of the advice's coarse sample [1/m^2] (the plan verifies at 400)."""
@@ -105,6 +100,7 @@ class Advice:
     """The advice for one plan: its coverage, the goal, the changes tried and which reach the goal."""
 
     coverage: float  # the plan's verified (sampled) coverage
+    too_few: float  # share of the plan's sampled poses that see fewer than three whole LEDs
     goal: float
     baseline: float  # the site as planned, under the advice's measure
     rows: tuple[Row, ...]
@@ -124,7 +120,7 @@ class Advice:
         """The ``advice`` mapping of ``plan.yaml`` and of ``vlp-plan --json``."""
         rec = self.recommended
         return {"goal": self.goal, "usable_from": USABLE_COVERAGE, "usable": self.usable,
-                "coverage": round(self.coverage, 4), "meets_goal": self.coverage >= self.goal,
+                "coverage": round(self.coverage, 4), "too_few_leds": round(self.too_few, 4), "meets_goal": self.coverage >= self.goal,
                 "method": "sampled", "measure": "share of sampled poses whose camera sees three whole, "
                                                  "non-collinear LEDs",
                 "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
@@ -197,8 +193,9 @@ KNOBS = (_receiver_changes, _camera_changes, _height_changes, _density_changes)
 """Candidate changes per knob, each list from the least to the most change; the order of the table."""
 
 
-def advise(site: Site, coverage: float, *, goal: float = COVERAGE_GOAL, seed: int = 0) -> Advice:
-    """Try the candidate changes on ``site`` (planned at ``coverage``) until some reach ``goal``.
+def advise(site: Site, coverage: float, too_few: float = 0.0, *, goal: float = COVERAGE_GOAL, seed: int = 0) -> Advice:
+    """Try the candidate changes on ``site`` (planned at ``coverage``, ``too_few`` of its poses
+    seeing fewer than three LEDs) until some reach ``goal``.
 
     For each knob the least change that reaches the goal, else its best; if no single change
     does, the least pair of changes (two knobs) that does, else the best pair.
@@ -244,15 +241,18 @@ def advise(site: Site, coverage: float, *, goal: float = COVERAGE_GOAL, seed: in
                 rows.append(best)
     rows.sort(key=lambda r: (not r.reaches, len(r.changes), -r.coverage if not r.reaches else 0))
     n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
-    return Advice(coverage, goal, baseline, tuple(rows), n_poses, per_m2)
+    return Advice(coverage, too_few, goal, baseline, tuple(rows), n_poses, per_m2)
 
 
 def verdict(advice: dict) -> str:
     """One line on whether a plan is usable and meets the goal, from the ``advice`` mapping."""
     cov, goal = 100 * advice["coverage"], 100 * advice["goal"]
     if not advice["usable"]:
+        few = 100 * advice.get("too_few_leds", 0.0)
+        why = (f"{few:.0f} % see fewer than three whole LEDs: the luminaires are too sparse for this camera"
+               if few >= 50 else "poses fail near the walls or see collinear LEDs")
         return (f"NOT USABLE: only {cov:.1f} % of sampled poses decode (a usable plan needs "
-                f"{100 * advice['usable_from']:.0f} %); the luminaires are too sparse for this camera and receiver")
+                f"{100 * advice['usable_from']:.0f} %); {why}; see the advice table")
     if not advice["meets_goal"]:
         return f"usable, below the goal: {cov:.1f} % of sampled poses decode, the goal is {goal:.0f} %"
     return f"meets the goal: {cov:.1f} % of sampled poses decode (goal {goal:.0f} %)"
@@ -268,7 +268,7 @@ def table(advice: dict) -> list[tuple[str, str, str]]:
             remark += ": vlp-plan " + " ".join(c["flags"])
             if c["camera"] and "CAMERA.yaml" in c["flags"]:
                 remark += f" (CAMERA.yaml with hfov_deg: {c['camera']['hfov_deg']:g})"
-        elif not c["applicable_by_flags"]:
-            remark += "; change the site"
+        if not c["applicable_by_flags"]:
+            remark += "; the layout itself must change"
         rows.append((c["change"], f"{100 * c['coverage']:.1f} %", remark))
     return rows

@@ -9,9 +9,9 @@ import time
 from pathlib import Path
 
 from planner import __version__
-from planner.advice import COVERAGE_GOAL
 from planner.cli import common as cli
 from planner.defaults import (
+    COVERAGE_GOAL,
     DRIVER_MAX_HZ,
     ERROR_POSES_PER_M2,
     LINE_CODE_NAMES,
@@ -24,7 +24,6 @@ from planner.defaults import (
     SCHEMES,
 )
 from planner.errors import ExitCode, UsageError
-
 
 
 def build_parser() -> argparse.ArgumentParser:

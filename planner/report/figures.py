@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from planner.plot_style import png_bytes, styled
-from planner.report.content import BillLine, Stop
+from planner.report.content import AdviceSection, BillLine, Stop
 
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
@@ -122,25 +122,40 @@ def route_figure(plan: PlanFile, route: np.ndarray) -> bytes:
     return png_bytes(fig)
 
 
-def bill_lines(bill: list[BillLine], width: int = LINE_CHARS - 10) -> tuple[str, list[str]]:
-    """The ID bill as a header and fixed-width text lines (luminaire names wrapped)."""
-    header = f"{'ID':>4}  {'class':<8} {'count':>5}  luminaires (in walking order)"
+def bill_lines(bill: list[BillLine], width: int = LINE_CHARS - 10, *, show_class: bool = True) -> tuple[str, list[str]]:
+    """The ID bill as a header and fixed-width text lines (luminaire names wrapped); the odd/even class
+    column only with ``show_class`` (the paper's scheme)."""
+    cls = (lambda text: f"{text:<8} ") if show_class else (lambda text: "")
+    header = f"{'ID':>4}  {cls('class')}{'count':>5}  luminaires (in walking order)"
+    indent = 14 + len(cls(""))
     lines = []
     for b in bill:
-        names = textwrap.wrap(" ".join(b.luminaires), width - 23) or [""]
-        lines.append(f"{b.id:>4}  {b.parity:<8} {b.count:>5}  {names[0]}")
-        lines += [" " * 23 + n for n in names[1:]]
+        names = textwrap.wrap(" ".join(b.luminaires), width - indent) or [""]
+        lines.append(f"{b.id:>4}  {cls(b.parity)}{b.count:>5}  {names[0]}")
+        lines += [" " * indent + n for n in names[1:]]
     return header, lines
 
 
-def checklist_lines(stops: list[Stop]) -> tuple[str, list[str]]:
-    """The checklist as a header and fixed-width text lines, one per stop, with a tick box."""
+def checklist_lines(stops: list[Stop], *, show_class: bool = True) -> tuple[str, list[str]]:
+    """The checklist as a header and fixed-width text lines, one per stop, with a tick box; the odd/even
+    class column only with ``show_class``."""
     w = max([len(s.name) for s in stops] + [9])
+    cls = (lambda text: f"{text:<5} ") if show_class else (lambda text: "")
     header = (f"done  {'stop':>4} {'row':>3}  {'luminaire':<{w}}  {'x [m]':>8} {'y [m]':>8}  {'ID':>4}  "
-              f"{'class':<5} {'region':>6}  flashing")
+              f"{cls('class')}{'region':>6}  flashing")
     lines = [f"[  ]  {s.number:>4} {s.row:>3}  {s.name:<{w}}  {s.x_m:>8.2f} {s.y_m:>8.2f}  {s.id:>4}  "
-             f"{s.parity:<5} {s.region:>6}  {s.status}{': ' + s.detail if s.detail else ''}" for s in stops]
+             f"{cls(s.parity)}{s.region:>6}  {s.status}{': ' + s.detail if s.detail else ''}" for s in stops]
     return header, [line if len(line) <= LINE_CHARS else line[:LINE_CHARS - 1] + "…" for line in lines]
+
+
+def advice_lines(advice: AdviceSection) -> tuple[str, list[str]]:
+    """The site advice as a header and fixed-width text lines: verdict, note, then the table."""
+    w = max([len(r[0]) for r in advice.rows] + [6])
+    lines = [*textwrap.wrap(advice.note, LINE_CHARS - 10), ""]
+    if advice.rows:
+        lines += [f"{'change':<{w}}  {'coverage':>8}  remark"]
+        lines += [f"{c:<{w}}  {v:>8}  {r}"[:LINE_CHARS] for c, v, r in advice.rows]
+    return advice.verdict, lines
 
 
 CORE_FONTS: dict[RcKeyType, Any] = {"pdf.use14corefonts": True, "font.family": "monospace", "font.monospace": ["Courier"],
@@ -198,7 +213,8 @@ def _image_page(pdf, title: str, png: bytes | None, missing: str) -> None:
 
 @styled
 def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[str, str]], sections: list[tuple[str, bytes | None, str]],
-              bill: tuple[str, list[str]], checklist: tuple[str, list[str]]) -> None:
+              bill: tuple[str, list[str]], checklist: tuple[str, list[str]],
+              advice: tuple[str, list[str]] | None = None) -> None:
     """Write the report as PDF: a title page with the summary, one page per figure, then the bill and checklist."""
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
@@ -212,6 +228,8 @@ def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[s
             fig.text(0.24, 0.78 - k * 0.055, "\n".join(textwrap.wrap(value, 95)), fontsize=11, va="top")
         pdf.savefig(fig)
         plt.close(fig)
+        if advice is not None:
+            _text_pages(pdf, "Site advice", *advice)
         for name, png, missing in sections:
             _image_page(pdf, name, png, missing)
         _text_pages(pdf, "ID bill", *bill)

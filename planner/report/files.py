@@ -14,8 +14,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
-from planner.report.content import checklist, id_bill, summary, walking_order
-from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
+from planner.report.content import advice_section, checklist, id_bill, summary, walking_order
+from planner.report.figures import (
+    advice_lines,
+    bill_lines,
+    checklist_lines,
+    route_figure,
+    timing_diagram,
+    timing_examples,
+    write_pdf,
+)
 
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
@@ -63,6 +71,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     stops = checklist(plan, journal)
     bill = id_bill(plan)
     head = summary(plan, stops)
+    advice = advice_section(plan)
+    show_class = plan.scheme == "paper"  # odd/even classes mean something only under the paper's region code
     title = f"VLP site report: {plan.source.get('file', plan_dir.name)}"
     figures = []
     for anchor, file, name, caption in MAPS:
@@ -80,8 +90,9 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     generator = plan.generator or f"vlp-plan {__version__}"
     html = _render_html({
         "title": title, "generator": generator, "plan_hash": plan_hash, "journal_note": journal_note,
-        "summary": head, "stops": stops, "bill": bill,
-        "contents": [("summary", "Summary")] + [(a, n) for a, n, *_ in figures]
+        "summary": head, "stops": stops, "bill": bill, "advice": advice, "show_class": show_class,
+        "contents": [("summary", "Summary")] + ([("advice", "Site advice")] if advice else [])
+                    + [(a, n) for a, n, *_ in figures]
                     + [("bill", "ID bill"), ("checklist", "Checklist")],
         "figures": [{"anchor": a, "name": n, "caption": c, "missing": m,
                      "data": base64.b64encode(png).decode("ascii") if png else None}
@@ -93,5 +104,6 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     sections = [(n, png, m) for _, n, png, _, m in figures]
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
-        bill_lines(bill), checklist_lines(stops)))
+        bill_lines(bill, show_class=show_class), checklist_lines(stops, show_class=show_class),
+        advice_lines(advice) if advice else None))
     return [html_path, pdf_path]
