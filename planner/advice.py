@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,7 +52,7 @@ class Site:
 
     xyz: np.ndarray
     radii: np.ndarray
-    outline: list[tuple[float, float]] | None
+    outline: Sequence[tuple[float, float]] | None
     camera: Camera
     receiver: str = "three"
     filled: bool = False  # the luminaires were laid out by ``--leds N`` in an outline-only drawing
@@ -142,9 +142,11 @@ def _camera_changes(site: Site) -> list[Change]:
             continue
         f_px = (base.width_px / 2) / math.tan(math.radians(fov) / 2)
         cam = dataclasses.replace(base, fx_px=f_px, fy_px=f_px * base.fy_px / base.fx_px, name="")
+        def with_camera(s: Site, cam: Camera = cam) -> Site:
+            return dataclasses.replace(s, camera=cam)
+
         out.append(Change("camera", f"camera with a {fov:g} deg field of view (now {now:.0f} deg)",
-                          ("--camera", "CAMERA.yaml"),
-                          lambda s, cam=cam: dataclasses.replace(s, camera=cam), cam.to_dict()))
+                          ("--camera", "CAMERA.yaml"), with_camera, cam.to_dict()))
     return out
 
 
@@ -184,8 +186,10 @@ def _density_changes(site: Site) -> list[Change]:
 
 
 def _receiver_changes(site: Site) -> list[Change]:
-    return [Change("receiver", f"receiver mode {mode}", ("--receiver", mode),
-                   lambda s, mode=mode: dataclasses.replace(s, receiver=mode))
+    def with_mode(mode: str) -> Callable[[Site], Site]:
+        return lambda s: dataclasses.replace(s, receiver=mode)
+
+    return [Change("receiver", f"receiver mode {mode}", ("--receiver", mode), with_mode(mode))
             for mode in RECEIVERS if mode != site.receiver]
 
 
