@@ -120,7 +120,7 @@ class Advice:
         """The ``advice`` mapping of ``plan.yaml`` and of ``vlp-plan --json``."""
         rec = self.recommended
         return {"goal": self.goal, "usable_from": USABLE_COVERAGE, "usable": self.usable,
-                "coverage": round(self.coverage, 4), "too_few_leds": round(self.too_few, 4), "meets_goal": self.coverage >= self.goal,
+                "coverage": round(self.coverage, 6), "too_few_leds": round(self.too_few, 4), "meets_goal": self.coverage >= self.goal,
                 "method": "sampled", "measure": "share of sampled poses whose camera sees three whole, "
                                                  "non-collinear LEDs",
                 "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
