@@ -27,6 +27,10 @@ LABEL_LIMIT = 2000
 """Above this many luminaires, IDs are not written on the map (unreadable)."""
 
 
+PAD_IN = 0.1
+"""Margin the constrained layout keeps between any text and the canvas edge [inch]."""
+
+
 def _region_colours(edges: np.ndarray, regions: np.ndarray) -> np.ndarray:
     """A shade index (0-3) per luminaire such that neighbouring regions differ where possible."""
     import networkx as nx
@@ -75,6 +79,7 @@ def map_figure(plan: Plan):
     width_in = max(6.0, span[0] * inch_per_m + 1.2)
     fig, ax = plt.subplots(figsize=(width_in, max(4.5, span[1] * inch_per_m + 1.6)), dpi=110,
                            layout="constrained")
+    fig.get_layout_engine().set(w_pad=PAD_IN, h_pad=PAD_IN)
     n_regions = int(regions.max()) + 1
     # Regions: a pitch-sized cell behind each luminaire, shaded by region, so groups tile.
     shades = np.array([0.95, 0.84, 0.90, 0.78])[_region_colours(plan.graph.edges, regions)]
@@ -158,8 +163,9 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
         share = np.where(total > 0, good / total, np.nan)
     span = hi - lo
     inch_per_m = min(14.0 / span[0], 10.0 / span[1], 1.5)
-    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 2.0), max(4.5, span[1] * inch_per_m + 1.6)),
+    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 2.6), max(4.5, span[1] * inch_per_m + 1.6)),
                            dpi=110, layout="constrained")
+    fig.get_layout_engine().set(w_pad=PAD_IN, h_pad=PAD_IN)
     cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
     mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
     fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)
@@ -173,6 +179,8 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
+    ax.set_xlim(bins[0][0], bins[0][-1])  # fixed limits: the layout sizes its margins for the ticks drawn
+    ax.set_ylim(bins[1][0], bins[1][-1])
     fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return fig
 
