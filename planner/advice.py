@@ -2,7 +2,7 @@
 
 A plan's coverage is the share of sampled poses that decode (``planner.verify``).
 Below :data:`COVERAGE_GOAL`, the planner tries changes an integrator can make
-(a wider camera, luminaires mounted higher, denser luminaires; a receiver mode
+(a wider camera profile, luminaires mounted higher, denser luminaires; a receiver mode
 once one is registered in :data:`RECEIVERS`), each alone and then two at a time,
 and measures each with the same sampled measure: the share of a coarse pose
 sample (:func:`advice_per_m2`) whose camera sees a window, i.e. three whole,
@@ -34,9 +34,6 @@ ADVICE_MIN_POSES = 4000
 
 MARGIN = 0.01
 """A change counts as reaching the goal when its sampled coverage is at least goal + MARGIN (sampling error)."""
-
-FOV_DEG = (60.0, 70.0, 90.0, 110.0)
-"""Horizontal fields of view tried for the camera [deg] (until phone profiles are listed)."""
 
 RAISE_M = (0.5, 1.0, 2.0)
 """How much higher the luminaires are tried [m]."""
@@ -134,19 +131,23 @@ def advice_per_m2(area: np.ndarray) -> float:
 
 
 def _camera_changes(site: Site) -> list[Change]:
-    base = site.camera.ideal()
+    """The bundled phone profiles (``--camera NAME``) wider than the site's camera, held as the site's camera is
+    (receiver heights, tilt)."""
+    from planner.camera_file import camera_profiles
+
     now = math.degrees(site.camera.hfov_rad)
+    held = {k: getattr(site.camera, k) for k in ("min_height_m", "max_height_m", "max_tilt_rad")}
+    wider = sorted((p.camera for p in camera_profiles().values() if math.degrees(p.camera.hfov_rad) > now + 1.0),
+                   key=lambda cam: cam.hfov_rad)
     out = []
-    for fov in FOV_DEG:
-        if fov <= now + 1.0:
-            continue
-        f_px = (base.width_px / 2) / math.tan(math.radians(fov) / 2)
-        cam = dataclasses.replace(base, fx_px=f_px, fy_px=f_px * base.fy_px / base.fx_px, name="")
+    for cam in wider:
+        cam = dataclasses.replace(cam, **held)
+
         def with_camera(s: Site, cam: Camera = cam) -> Site:
             return dataclasses.replace(s, camera=cam)
 
-        out.append(Change("camera", f"camera with a {fov:g} deg field of view (now {now:.0f} deg)",
-                          ("--camera", "CAMERA.yaml"), with_camera, cam.to_dict()))
+        out.append(Change("camera", f"camera profile {cam.name} ({math.degrees(cam.hfov_rad):.0f} deg field of "
+                          f"view; now {now:.0f} deg)", ("--camera", cam.name), with_camera, cam.to_dict()))
     return out
 
 
@@ -270,8 +271,6 @@ def table(advice: dict) -> list[tuple[str, str, str]]:
             "reaches the goal" if c["reaches_goal"] else "best tried, below the goal")
         if c["flags"]:
             remark += ": vlp-plan " + " ".join(c["flags"])
-            if c["camera"] and "CAMERA.yaml" in c["flags"]:
-                remark += f" (CAMERA.yaml with hfov_deg: {c['camera']['hfov_deg']:g})"
         if not c["applicable_by_flags"]:
             remark += "; the layout itself must change"
         rows.append((c["change"], f"{100 * c['coverage']:.1f} %", remark))

@@ -78,8 +78,8 @@ def map_figure(plan: Plan):
     inch_per_m = min(16.0 / span[0], 12.0 / span[1], 1.5)
     width_in = max(6.0, span[0] * inch_per_m + 1.2)
     fig, ax = plt.subplots(figsize=(width_in, max(4.5, span[1] * inch_per_m + 1.6)), dpi=110,
-                           layout="constrained")
-    fig.get_layout_engine().set(w_pad=PAD_IN, h_pad=PAD_IN)
+                           )
+    fig.set_layout_engine("constrained", w_pad=PAD_IN, h_pad=PAD_IN)
     n_regions = int(regions.max()) + 1
     # Regions: a pitch-sized cell behind each luminaire, shaded by region, so groups tile.
     shades = np.array([0.95, 0.84, 0.90, 0.78])[_region_colours(plan.graph.edges, regions)]
@@ -164,8 +164,8 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
     span = hi - lo
     inch_per_m = min(14.0 / span[0], 10.0 / span[1], 1.5)
     fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 2.6), max(4.5, span[1] * inch_per_m + 1.6)),
-                           dpi=110, layout="constrained")
-    fig.get_layout_engine().set(w_pad=PAD_IN, h_pad=PAD_IN)
+                           dpi=110)
+    fig.set_layout_engine("constrained", w_pad=PAD_IN, h_pad=PAD_IN)
     cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
     mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
     fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)

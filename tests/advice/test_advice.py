@@ -23,13 +23,9 @@ def _plan(args: list[str], cwd) -> tuple[int, dict, str]:
 
 
 def _apply(row: dict, tmp_path) -> list[str]:
-    """The vlp-plan flags of an advice row, its camera written as the camera file it names."""
+    """The vlp-plan flags of an advice row."""
     flags = list(row["flags"])
     assert row["applicable_by_flags"] and flags
-    if "CAMERA.yaml" in flags:
-        camera = tmp_path / "camera.yaml"
-        camera.write_text(yaml.safe_dump(row["camera"]))
-        flags[flags.index("CAMERA.yaml")] = str(camera)
     return flags
 
 
