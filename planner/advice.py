@@ -98,6 +98,7 @@ class Advice:
 
     coverage: float  # the plan's verified (sampled) coverage
     too_few: float  # share of the plan's sampled poses that see fewer than three whole LEDs
+    ambiguous: float  # share of the plan's sampled poses whose window reads like another triple
     goal: float
     baseline: float  # the site as planned, under the advice's measure
     rows: tuple[Row, ...]
@@ -117,7 +118,8 @@ class Advice:
         """The ``advice`` mapping of ``plan.yaml`` and of ``vlp-plan --json``."""
         rec = self.recommended
         return {"goal": self.goal, "usable_from": USABLE_COVERAGE, "usable": self.usable,
-                "coverage": round(self.coverage, 6), "too_few_leds": round(self.too_few, 4), "meets_goal": self.coverage >= self.goal,
+                "coverage": round(self.coverage, 6), "too_few_leds": round(self.too_few, 4),
+                "ambiguous": round(self.ambiguous, 4), "meets_goal": self.coverage >= self.goal,
                 "method": "sampled", "measure": "share of sampled poses whose camera sees three whole, "
                                                  "non-collinear LEDs",
                 "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
@@ -198,9 +200,10 @@ KNOBS = (_receiver_changes, _camera_changes, _height_changes, _density_changes)
 """Candidate changes per knob, each list from the least to the most change; the order of the table."""
 
 
-def advise(site: Site, coverage: float, too_few: float = 0.0, *, goal: float = COVERAGE_GOAL, seed: int = 0) -> Advice:
+def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float = 0.0, *, goal: float = COVERAGE_GOAL,
+           seed: int = 0) -> Advice:
     """Try the candidate changes on ``site`` (planned at ``coverage``, ``too_few`` of its poses
-    seeing fewer than three LEDs) until some reach ``goal``.
+    seeing fewer than three LEDs and ``ambiguous`` of them reading alike) until some reach ``goal``.
 
     For each knob the least change that reaches the goal, else its best; if no single change
     does, the least pair of changes (two knobs) that does, else the best pair.
@@ -246,16 +249,17 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, *, goal: float = C
                 rows.append(best)
     rows.sort(key=lambda r: (not r.reaches, len(r.changes), -r.coverage if not r.reaches else 0))
     n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
-    return Advice(coverage, too_few, goal, baseline, tuple(rows), n_poses, per_m2)
+    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2)
 
 
 def verdict(advice: dict) -> str:
     """One line on whether a plan is usable and meets the goal, from the ``advice`` mapping."""
     cov, goal = 100 * advice["coverage"], 100 * advice["goal"]
     if not advice["usable"]:
-        few = 100 * advice.get("too_few_leds", 0.0)
+        few, alike = 100 * advice.get("too_few_leds", 0.0), 100 * advice.get("ambiguous", 0.0)
         why = (f"{few:.0f} % see fewer than three whole LEDs: the luminaires are too sparse for this camera"
-               if few >= 50 else "poses fail near the walls or see collinear LEDs")
+               if few >= 50 else f"{alike:.0f} % are ambiguous under this scheme (--scheme auto avoids that)"
+               if alike >= few else "poses fail near the walls or see collinear LEDs")
         return (f"NOT USABLE: only {cov:.1f} % of sampled poses decode (a usable plan needs "
                 f"{100 * advice['usable_from']:.0f} %); {why}; see the advice table")
     if not advice["meets_goal"]:

@@ -31,7 +31,15 @@ from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.verify.proof import prove_window_set
-from planner.verify.verify import TOO_FEW, Verification, check_window_set, classify, observe_poses, side_bound
+from planner.verify.verify import (
+    AMBIGUOUS,
+    TOO_FEW,
+    Verification,
+    check_window_set,
+    classify,
+    observe_poses,
+    side_bound,
+)
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
 
 LAYOUT_SUFFIXES = (".dxf", ".ifc", ".yaml", ".yml", ".csv")
@@ -218,8 +226,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     advice = None
     if verification is not None:
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
-        too_few = verification.count(TOO_FEW) / max(verification.poses, 1)
-        advice = advise(Site(xyz, radii, layout.outline, cam, filled=filled), verification.coverage, too_few,
+        share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
+        advice = advise(Site(xyz, radii, layout.outline, cam, filled=filled), verification.coverage, *share,
                         goal=options.coverage_goal, seed=options.seed)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice)
 
