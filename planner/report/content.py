@@ -142,7 +142,7 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
         if plan.advice:
             from planner.advice import verdict
 
-            rows.append(("verdict", verdict(plan.advice)))
+            rows.append(("verdict", verdict(plan.advice.model_dump())))
     else:
         rows.append(("verification", "not verified (--no-verify)"))
     if acc and acc.located and acc.median_m is not None and acc.p90_m is not None:
@@ -178,9 +178,9 @@ def advice_section(plan: PlanFile) -> AdviceSection | None:
     """The site advice of a verified plan (``plan.yaml``'s ``advice``), or None."""
     from planner.advice import table, verdict
 
-    a = plan.advice
-    if not a:
+    if plan.advice is None:
         return None
+    a = plan.advice.model_dump()
     note = (f"Changes tried to reach {100 * a['goal']:.0f} % of sampled poses, each measured on a coarse sample "
             f"({a['poses_per_candidate']} poses, {a['poses_per_m2']:g} per m2) as the share whose camera sees three "
             "whole, non-collinear LEDs. Sampled figures, not proved; plan the changed site to verify it."

@@ -108,3 +108,21 @@ def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     again = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
                             "--no-map", "--allow-unusable"], capture_output=True, text=True)
     assert again.returncode == 0 and "NOT USABLE" in again.stderr
+
+
+def test_site_report_shows_the_advice_and_no_classes_under_the_window_scheme(tmp_path):
+    out = tmp_path / "rig"
+    run = subprocess.run(["vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(out), "--no-map"],
+                         capture_output=True, text=True)
+    assert run.returncode == 3
+    html = (out / "site-report.html").read_text()
+    section = html[html.index('<h2 id="advice">'):html.index("<h2", html.index('<h2 id="advice">') + 1)]
+    assert "NOT USABLE" in section and "Sampled figures, not proved" in section
+    assert "--camera ultrawide" in section and "recommended; reaches the goal" in section
+    doc = yaml.safe_load((out / "plan.yaml").read_text())
+    assert doc["scheme"] == "window" and "<th>class</th>" not in html  # odd/even means nothing here
+    doc["advice"]["recommended"] = 99  # a hand-edited plan naming no row: one line, exit 1
+    (out / "plan.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    bad = subprocess.run(["vlp-report", str(out / "plan.yaml")], capture_output=True, text=True)
+    assert bad.returncode == 1 and "Traceback" not in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and "advice.recommended 99" in bad.stderr
