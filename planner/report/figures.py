@@ -53,7 +53,12 @@ def timing_examples(plan: PlanFile, route: np.ndarray) -> list[Entry]:
 
 @styled
 def timing_diagram(mod: ModulationFields, examples: list[Entry]) -> bytes:
-    """PNG: each example's LED drive (on/off) over a few frames, preamble shaded, with the smallest LED image's span.
+    """PNG of :func:`timing_figure`."""
+    return png_bytes(timing_figure(mod, examples))
+
+
+def timing_figure(mod: ModulationFields, examples: list[Entry]):
+    """Each example's LED drive (on/off) over a few frames, preamble shaded, with the smallest LED image's span.
 
     Time runs left to right in milliseconds; phases are aligned for reading (on
     site every driver starts at its own phase, and the receiver finds the
@@ -89,12 +94,17 @@ def timing_diagram(mod: ModulationFields, examples: list[Entry]) -> bytes:
     ax.set_ylabel("LED drive per luminaire (high = on)")
     ax.set_title(f"LED drive: {mod.line_code} at {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
                  f"per frame ({mod.frame_period_s * 1e3:.3f} ms), preamble {mod.preamble}")
-    return png_bytes(fig)
+    return fig
 
 
 @styled
 def route_figure(plan: PlanFile, route: np.ndarray) -> bytes:
-    """PNG: the installers' serpentine route over the luminaires, with stop numbers."""
+    """PNG of :func:`route_fig`."""
+    return png_bytes(route_fig(plan, route))
+
+
+def route_fig(plan: PlanFile, route: np.ndarray):
+    """The installers' serpentine route over the luminaires, with stop numbers."""
     import matplotlib.pyplot as plt
 
     xy = plan.xy
@@ -119,7 +129,7 @@ def route_figure(plan: PlanFile, route: np.ndarray) -> bytes:
     ax.set_title(f"Walking route: {len(path)} stops, rows by y, alternating direction"
                  + ("" if step == 1 else f" (every {step}th stop numbered)"))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, frameon=False)
-    return png_bytes(fig)
+    return fig
 
 
 def bill_lines(bill: list[BillLine], width: int = LINE_CHARS - 10, *, show_class: bool = True) -> tuple[str, list[str]]:

@@ -169,7 +169,7 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
     cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
     mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
     fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)
-    ax.scatter(xy[:, 0], xy[:, 1], s=12, facecolors="none", edgecolors="0.35", linewidths=0.6, label="luminaire")
+    ax.scatter(xy[:, 0], xy[:, 1], s=12, facecolors="none", edgecolors="0.55", linewidths=0.8, label="luminaire")
     amb = v.status == AMBIGUOUS
     if amb.any():
         ax.scatter(pos[amb, 0], pos[amb, 1], marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
@@ -187,7 +187,12 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
 
 @styled
 def render_error(plan: Plan, path: str | Path) -> None:
-    """Write the expected-error map as PNG: median and 90th-percentile error per square, side by side.
+    """Write the expected-error map as PNG (:func:`error_figure`)."""
+    save_png(error_figure(plan), path)
+
+
+def error_figure(plan: Plan):
+    """The expected-error map: median and 90th-percentile error per square, side by side.
 
     Dark is bad (large error); squares where no sampled pose gave a position are light grey.
     """
@@ -214,4 +219,4 @@ def render_error(plan: Plan, path: str | Path) -> None:
     s = acc.summary()
     fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method, edge noise {s['noise_px']:g} px, "
                  f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
-    save_png(fig, path)
+    return fig

@@ -2,6 +2,7 @@
 classes drawn only under the paper's scheme (text boxes of the rendered figures, not only PNGs)."""
 
 import matplotlib
+import numpy as np
 import pytest
 
 from conftest import ROOT
@@ -44,9 +45,10 @@ def _check(fig) -> list:
 @pytest.fixture(scope="module")
 def plans():
     def plan(name, leds=None, **kw):
-        return make_plan(read_layout(ROOT / "layouts" / name, leds), PlanOptions(error_poses_per_m2=0, **kw))
+        return make_plan(read_layout(ROOT / "layouts" / name, leds), PlanOptions(**{"error_poses_per_m2": 0, **kw}))
 
-    return {"grid-32": plan("grid-32.yaml"), "grid-32 paper": plan("grid-32.yaml", scheme="paper"),
+    return {"grid-32": plan("grid-32.yaml", error_poses_per_m2=4.0),
+            "grid-32 paper": plan("grid-32.yaml", scheme="paper"),
             "office": plan("dialux-office.dxf"),
             "grid-512 paper": plan("grid-512.yaml", 512, scheme="paper", verify=False)}
 
@@ -65,6 +67,19 @@ def test_map_text_stays_inside_and_off_the_ids(plans, name):
     assert (len(classes) == 2) == (p.assignment.scheme == "paper")
 
 
+def test_coverage_map_of_the_512_grid_keeps_its_legend(plans):
+    """The 512 grid's coverage map (its legend was cut off at the bottom), from a coarse verification."""
+    from planner.verify.verify import verify_plan
+
+    p = plans["grid-512 paper"]
+    radii = [lum.radius for lum in p.layout.luminaires]
+    v = verify_plan(p.layout.xyz, np.array(radii), p.assignment.ids, p.layout.outline, p.camera,
+                    per_m2=5.0)
+    with matplotlib.rc_context(RC):
+        boxes = _check(coverage_figure(v, p.layout.xy, "grid-512.yaml: paper scheme"))
+    assert any(t == "luminaire" for t, *_ in boxes)  # the legend entry, inside the canvas
+
+
 def test_window_scheme_draws_no_odd_even_classes(plans):
     p = plans["grid-32"]
     assert p.assignment.scheme == "window"
@@ -72,3 +87,36 @@ def test_window_scheme_draws_no_odd_even_classes(plans):
         fig = map_figure(p)
         fills = {tuple(c) for coll in fig.axes[0].collections[2:] for c in coll.get_facecolors()}
     assert fills == {(1.0, 1.0, 1.0, 1.0)}  # every luminaire drawn alike: the classes mean nothing here
+
+
+def test_report_figures_keep_their_text_inside(plans):
+    """The error map, the frame timing and the walking route of the site report."""
+    from planner.plan import plan_document
+    from planner.plan_file import plan_from_document
+    from planner.report.content import walking_order
+    from planner.report.figures import route_fig, timing_examples, timing_figure
+    from planner.report.maps import error_figure
+
+    p = plans["grid-32"]
+    loaded = plan_from_document(plan_document(p), "grid-32")
+    route, _ = walking_order(loaded.xy)
+    assert p.accuracy is not None and loaded.modulation is not None
+    with matplotlib.rc_context(RC):
+        for fig in (error_figure(p), timing_figure(loaded.modulation, timing_examples(loaded, route)),
+                    route_fig(loaded, route)):
+            assert len(_check(fig)) > len(fig.axes)  # titles, labels and legends were checked, not only axes
+
+
+def test_the_check_catches_clipped_text_and_covered_ids():
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.text(0.5, 0.5, "12", gid="id", transform=ax.transAxes)
+    ax.text(0.5, 0.5, "R0", gid="region", transform=ax.transAxes)
+    with pytest.raises(AssertionError, match="covers an ID"):
+        _check(fig)
+    ax.texts[-1].remove()
+    ax.set_title("a title far too long for a figure three inches wide, so it runs off both sides")
+    with pytest.raises(AssertionError, match="leaves the canvas"):
+        _check(fig)
+    plt.close(fig)
