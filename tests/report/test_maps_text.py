@@ -110,7 +110,7 @@ def test_report_figures_keep_their_text_inside(plans):
 def test_the_check_catches_clipped_text_and_covered_ids():
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(3, 2))
+    fig, ax = plt.subplots(figsize=(3, 2), layout="constrained")
     ax.text(0.5, 0.5, "12", gid="id", transform=ax.transAxes)
     ax.text(0.5, 0.5, "R0", gid="region", transform=ax.transAxes)
     with pytest.raises(AssertionError, match="covers an ID"):
