@@ -32,7 +32,7 @@ HTML_NAME = "site-report.html"
 PDF_NAME = "site-report.pdf"
 
 MAPS = (
-    ("map", "map.png", "Site map", "IDs on the luminaires; odd class filled, even hollow; regions shaded and labelled."),
+    ("map", "map.png", "Site map", "IDs on the luminaires; regions shaded and labelled between the luminaires."),
     ("coverage", "coverage.png", "Coverage",
      "Share of sampled camera poses (height, tilt, heading) whose view decodes to one place; dark is bad."),
     ("error", "error.png", "Expected positioning error",
@@ -77,6 +77,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     figures = []
     for anchor, file, name, caption in MAPS:
         png = plan_dir / file
+        if anchor == "map" and show_class:
+            caption += " Odd class filled, even hollow (the paper's checkerboard: odd IDs on odd luminaires)."
         figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
                         f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify)."))
     if plan.modulation is not None:
