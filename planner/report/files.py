@@ -107,5 +107,5 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
         bill_lines(bill, show_class=show_class), checklist_lines(stops, show_class=show_class),
-        advice_lines(advice) if advice else None))
+        advice_lines(advice) if advice and advice.rows else None))
     return [html_path, pdf_path]
