@@ -148,8 +148,8 @@ def _camera_changes(site: Site) -> list[Change]:
         def with_camera(s: Site, cam: Camera = cam) -> Site:
             return dataclasses.replace(s, camera=cam)
 
-        out.append(Change("camera", f"camera profile {cam.name} ({math.degrees(cam.hfov_rad):.0f} deg field of "
-                          f"view; now {now:.0f} deg)", ("--camera", cam.name), with_camera, cam.to_dict()))
+        out.append(Change("camera", f"camera {cam.name} ({math.degrees(cam.hfov_rad):.0f} deg wide, now {now:.0f})",
+                          ("--camera", cam.name), with_camera, cam.to_dict()))
     return out
 
 
@@ -162,7 +162,7 @@ def _height_changes(site: Site) -> list[Change]:
             xyz[:, 2] += dz
             return dataclasses.replace(s, xyz=xyz)
 
-        out.append(Change("height", f"luminaires mounted {dz:g} m higher ({z + dz:g} m)",
+        out.append(Change("height", f"luminaires {dz:g} m higher ({z + dz:g} m)",
                           ("--height", f"{z + dz:g}") if site.filled else (), raise_))
     return out
 
@@ -182,8 +182,7 @@ def _density_changes(site: Site) -> list[Change]:
             return dataclasses.replace(s, xyz=xyz, radii=np.full(len(lums), radius))
 
         pitch = math.sqrt(area_m2(area) / n)
-        text = f"{n} luminaires ({k} x), about {pitch:.2g} m apart"
-        out.append(Change("density", text if site.filled else text + " (redraw the layout)",
+        out.append(Change("density", f"{n} luminaires ({k} x, {pitch:.2g} m apart)",
                           ("--leds", str(n)) if site.filled else (), denser))
     return out
 
@@ -271,11 +270,13 @@ def table(advice: dict) -> list[tuple[str, str, str]]:
     """The advice table as (change, sampled coverage, remark) rows, the site as planned first."""
     rows = [("as planned (this site, this camera)", f"{100 * advice['baseline']:.1f} %", "")]
     for k, c in enumerate(advice["changes"]):
-        remark = ("recommended; " if k == advice["recommended"] else "") + (
-            "reaches the goal" if c["reaches_goal"] else "best tried, below the goal")
+        remark = ("recommended: " if k == advice["recommended"] else "") + (
+            "reaches the goal" if c["reaches_goal"] else
+            f"within {100 * MARGIN:g} point of the goal (sampling error)" if c["coverage"] >= advice["goal"] else
+            "below the goal")
         if c["flags"]:
-            remark += ": vlp-plan " + " ".join(c["flags"])
+            remark += "; vlp-plan " + " ".join(c["flags"])
         if not c["applicable_by_flags"]:
-            remark += "; the layout itself must change"
+            remark += "; change the layout"
         rows.append((c["change"], f"{100 * c['coverage']:.1f} %", remark))
     return rows

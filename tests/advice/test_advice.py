@@ -118,7 +118,7 @@ def test_site_report_shows_the_advice_and_no_classes_under_the_window_scheme(tmp
     html = (out / "site-report.html").read_text()
     section = html[html.index('<h2 id="advice">'):html.index("<h2", html.index('<h2 id="advice">') + 1)]
     assert "NOT USABLE" in section and "Sampled figures, not proved" in section
-    assert "--camera ultrawide" in section and "recommended; reaches the goal" in section
+    assert "--camera ultrawide" in section and "recommended: reaches the goal" in section
     doc = yaml.safe_load((out / "plan.yaml").read_text())
     assert doc["scheme"] == "window" and "<th>class</th>" not in html  # odd/even means nothing here
     doc["advice"]["recommended"] = 99  # a hand-edited plan naming no row: one line, exit 1
