@@ -32,6 +32,12 @@ ADVICE_POSES_PER_M2 = 10.0
 ADVICE_MIN_POSES = 4000
 """The coarse sample holds at least this many poses on small sites (sampling error about 0.5 point)."""
 
+ADVICE_MAX_POSES = 20000
+"""... and at most this many on large ones, so that the advice stays cheap beside the plan."""
+
+DENSER_MAX_LUMINAIRES = 20000
+"""Denser layouts are tried up to this many luminaires."""
+
 MARGIN = 0.01
 """A change counts as reaching the goal when its sampled coverage is at least goal + MARGIN (sampling error)."""
 
@@ -128,8 +134,10 @@ class Advice:
 
 
 def advice_per_m2(area: np.ndarray) -> float:
-    """Pose density of the coarse sample over ``area``: :data:`ADVICE_POSES_PER_M2`, more on small sites."""
-    return max(ADVICE_POSES_PER_M2, ADVICE_MIN_POSES / max(area_m2(area), 1e-6))
+    """Pose density of the coarse sample over ``area``: :data:`ADVICE_POSES_PER_M2`, more on small sites and
+    less on large ones (between :data:`ADVICE_MIN_POSES` and :data:`ADVICE_MAX_POSES` poses)."""
+    m2 = max(area_m2(area), 1e-6)
+    return float(np.clip(ADVICE_POSES_PER_M2 * m2, ADVICE_MIN_POSES, ADVICE_MAX_POSES)) / m2
 
 
 def _camera_changes(site: Site) -> list[Change]:
@@ -173,13 +181,15 @@ def _density_changes(site: Site) -> list[Change]:
     out = []
     for k in DENSER:
         n = k * len(site.xyz)
-        if n * (2 * radius) ** 2 > area_m2(area):
+        if n * (2 * radius) ** 2 > area_m2(area) or n > DENSER_MAX_LUMINAIRES:
             break
 
         def denser(s: Site, n: int = n) -> Site:
             lums, _ = fill_outline(area, n, float(np.median(s.xyz[:, 2])), radius)
             xyz = np.array([[lum.x, lum.y, lum.z] for lum in lums])
-            return dataclasses.replace(s, xyz=xyz, radii=np.full(len(lums), radius))
+            # poses over the same floor as the site's: the new lattice's hull is smaller than the old one's
+            return dataclasses.replace(s, xyz=xyz, radii=np.full(len(lums), radius),
+                                       outline=[(float(x), float(y)) for x, y in area])
 
         pitch = math.sqrt(area_m2(area) / n)
         out.append(Change("density", f"{n} luminaires ({k} x, {pitch:.2g} m apart)",
