@@ -30,6 +30,7 @@ from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_ro
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
+from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import (
     AMBIGUOUS,
@@ -78,6 +79,7 @@ class PlanOptions:
     line_code: str = "manchester"
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
+    error_terms: ErrorTerms = DEFAULT_TERMS
     coverage_goal: float = COVERAGE_GOAL
 
 
@@ -222,7 +224,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     accuracy = None
     if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
-                                 per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample)
+                                 per_m2=options.error_poses_per_m2, seed=options.seed, terms=options.error_terms,
+                                 sample=sample)
     advice = None
     if verification is not None:
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)

@@ -14,7 +14,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
-from planner.report.content import advice_section, checklist, id_bill, summary, walking_order
+from planner.report.content import (
+    advice_section,
+    budget_lines,
+    budget_rows,
+    checklist,
+    error_includes,
+    id_bill,
+    summary,
+    walking_order,
+)
 from planner.report.figures import (
     advice_lines,
     bill_lines,
@@ -36,7 +45,7 @@ MAPS = (
     ("coverage", "coverage.png", "Coverage",
      "Share of sampled camera poses (height, tilt, heading) whose view decodes to one place; dark is bad."),
     ("error", "error.png", "Expected positioning error",
-     "Simulated fixes over the site with pixel noise only; survey and lens errors come on top."),
+     "Simulated fixes over the site"),
 )
 """The maps the report embeds: (anchor, file in the plan's directory, heading, caption)."""
 
@@ -75,8 +84,12 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     show_class = plan.scheme == "paper"  # odd/even classes mean something only under the paper's region code
     title = f"VLP site report: {plan.source.get('file', plan_dir.name)}"
     figures = []
+    budget = budget_rows(plan)
     for anchor, file, name, caption in MAPS:
         png = plan_dir / file
+        if anchor == "error" and plan.accuracy is not None:
+            caption = f"{caption}, {plan.accuracy.method} method; {error_includes(plan)}" + \
+                ("; the budget below gives each term alone." if budget else ".")
         if anchor == "map" and show_class:
             caption += " Odd class filled, even hollow (the paper's checkerboard: odd IDs on odd luminaires)."
         figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
@@ -95,7 +108,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
         "summary": head, "stops": stops, "bill": bill, "advice": advice, "show_class": show_class,
         "contents": [("summary", "Summary")] + ([("advice", "Site advice")] if advice else [])
                     + [(a, n) for a, n, *_ in figures]
-                    + [("bill", "ID bill"), ("checklist", "Checklist")],
+                    + [("budget", "Error budget")] * bool(budget) + [("bill", "ID bill"), ("checklist", "Checklist")],
+        "budget": budget, "error_includes": error_includes(plan),
         "figures": [{"anchor": a, "name": n, "caption": c, "missing": m,
                      "data": base64.b64encode(png).decode("ascii") if png else None}
                     for a, n, png, c, m in figures],
@@ -107,5 +121,5 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
         bill_lines(bill, show_class=show_class), checklist_lines(stops, show_class=show_class),
-        advice_lines(advice) if advice and advice.rows else None))
+        budget_lines(budget) if budget else None, advice_lines(advice) if advice and advice.rows else None))
     return [html_path, pdf_path]

@@ -196,6 +196,8 @@ def error_figure(plan: Plan):
 
     Dark is bad (large error); squares where no sampled pose gave a position are light grey.
     """
+    from planner.positioning.error_terms import TERM_NAMES
+
     acc = plan.accuracy
     assert acc is not None  # drawn only for a plan with an error map
     ex, ey, med, p90 = acc.cells()
@@ -217,6 +219,7 @@ def error_figure(plan: Plan):
     axes[0].set_ylabel("y [m]")
     fig.colorbar(mesh, ax=list(axes), label=f"position error [{unit}]", fraction=0.03)
     s = acc.summary()
-    fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method, edge noise {s['noise_px']:g} px, "
+    fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method with "
+                 f"{', '.join(TERM_NAMES[k] for k in s['includes']) or 'exact images'}, "
                  f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
     return fig
