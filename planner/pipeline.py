@@ -21,7 +21,7 @@ from planner.camera import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
 from planner.codes.schemes import assign_unique, assign_window
-from planner.defaults import INSTALL_TOLERANCE_M, SCHEMES
+from planner.defaults import INSTALL_TOLERANCE_M, MAX_VIDEO_FRAMES, SCHEMES, VIDEO_FPS
 from planner.errors import InputError, UsageError
 from planner.frame import line_code
 from planner.graph import build_graph
@@ -80,6 +80,9 @@ class PlanOptions:
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
     error_terms: ErrorTerms = DEFAULT_TERMS
+    video_fps: float = VIDEO_FPS
+    max_video_frames: int = MAX_VIDEO_FRAMES
+    mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
     coverage_goal: float = COVERAGE_GOAL
 
 
@@ -220,7 +223,9 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
     rows = smallest_window_image_rows(xyz, radii, cam, sample)
-    modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz)
+    modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
+                          video_fps=options.video_fps, max_video_frames=options.max_video_frames,
+                          mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,

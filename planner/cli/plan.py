@@ -21,7 +21,10 @@ from planner.defaults import (
     MAX_MCU_CLOCK_HZ,
     MAX_POSES_PER_M2,
     MAX_TIME_LIMIT_S,
+    MAX_VIDEO_FPS,
+    MAX_VIDEO_FRAMES,
     SCHEMES,
+    VIDEO_FPS,
 )
 from planner.errors import ExitCode, UsageError
 
@@ -71,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "1.5 chips per bit, runs <= 5); default manchester")
     g.add_argument("--driver-max-hz", type=cli.positive_float, default=DRIVER_MAX_HZ, metavar="HZ",
                    help=f"fastest chip rate the luminaire drivers switch (default {DRIVER_MAX_HZ:g})")
+    g.add_argument("--video-fps", type=cli.at_most(MAX_VIDEO_FPS), default=VIDEO_FPS, metavar="FPS",
+                   help=f"the receiver's video frame rate, for frames read over several video frames "
+                   f"(default {VIDEO_FPS:g})")
+    g.add_argument("--max-video-frames", type=cli.count_up_to(MAX_VIDEO_FRAMES), default=MAX_VIDEO_FRAMES,
+                   metavar="K", help="when no LED image holds a whole frame, read it over at most K consecutive "
+                   f"video frames (default {MAX_VIDEO_FRAMES}, the most; 1: one image only)")
     g = p.add_argument_group("accuracy")
     g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
                    help="positioning method the error map simulates (default perspective; paper: the paper's "
@@ -133,7 +142,9 @@ def main(argv: list[str] | None = None) -> int:
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
                                          args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
-                                         args.coverage_goal / 100))
+                                         video_fps=args.video_fps, max_video_frames=args.max_video_frames,
+                                         mcu_clock_hz=args.mcu_clock_hz,
+                                         coverage_goal=args.coverage_goal / 100))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
@@ -238,6 +249,12 @@ def _print_summary(s: dict) -> None:
         print(f"  frame    {m['line_code']}, {m['frame_chips']} chips at {m['chip_rate_hz'] / 1e3:g} kHz "
               f"({m['frame_period_s'] * 1e3:.2f} ms); {m['frames_in_smallest_image']:.1f} frames in the smallest LED "
               f"image ({m['smallest_image_rows']:.0f} rows)")
+        if "video_frames" in m:
+            print(f"           multi-frame: no LED image holds a whole frame, so the receiver reads it over "
+                  f"{m['video_frames']} consecutive video frames at {m['video_fps']:g} fps (each shows "
+                  f"{m['window_chips']:.1f} chips, advancing {m['frame_offset_chips']:.1f}); hold the phone still")
+        else:
+            print("           single-frame: one LED image holds a whole frame")
     a = s["accuracy"]
     if a and a["located"]:
         from planner.positioning.error_terms import TERM_NAMES, ErrorTerms, included_text
