@@ -22,6 +22,7 @@ from planner.errors import InputError, PositioningError
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
 from planner.positioning.paper import distance_weak_perspective, locate_paper
 from planner.positioning.perspective import initial_poses, locate_perspective
+from planner.positioning.undistort import ideal_ellipses
 
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
@@ -53,6 +54,12 @@ class Snapshot:
     camera: Camera
     ids: list[int]
     ellipses: list[Ellipse]
+
+    def ideal(self) -> Snapshot:
+        """This snapshot undistorted (:func:`planner.positioning.undistort.ideal_ellipses`): ellipses and
+        camera as an ideal pinhole sees them; itself when the camera does not distort."""
+        ellipses, camera = ideal_ellipses(self.ellipses, self.camera)
+        return self if camera is self.camera else Snapshot(camera, self.ids, ellipses)
 
 
 @dataclass(frozen=True)
@@ -87,7 +94,9 @@ def _complete(site: Site, snap: Snapshot, anchor: list[int], combo: tuple, posit
 
 
 def identify(site: Site, snap: Snapshot, max_residual_px: float = MAX_RESIDUAL_PX) -> Located:
-    """The one set of luminaires whose exact images, at one pose, match the snapshot's ellipses."""
+    """The one set of luminaires whose exact images, at one pose, match the snapshot's ellipses
+    (a distorted snapshot is undistorted first)."""
+    snap = snap.ideal()
     cam, n = snap.camera, len(snap.ids)
     if n < 3:
         raise PositioningError(f"{n} LED{'s' if n != 1 else ''} in the image: a position needs at least three")
@@ -152,6 +161,7 @@ def locate(site: Site, snap: Snapshot, method: str = "perspective", max_residual
         if not np.any(site.ids == i):
             raise InputError(f"leds[{k}]: ID {i} is not in the plan (IDs there run {site.ids.min()}..{site.ids.max()}); "
                              "check the decoding, or that this plan is the site's")
+    snap = snap.ideal()
     found = identify(site, snap, max_residual_px)
     if method == "perspective":
         return found
