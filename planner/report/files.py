@@ -15,8 +15,25 @@ from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
 from planner.report.asbuilt import asbuilt_lines
-from planner.report.content import budget_lines, budget_rows, checklist, error_includes, id_bill, summary, walking_order
-from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
+from planner.report.content import (
+    advice_section,
+    budget_lines,
+    budget_rows,
+    checklist,
+    error_includes,
+    id_bill,
+    summary,
+    walking_order,
+)
+from planner.report.figures import (
+    advice_lines,
+    bill_lines,
+    checklist_lines,
+    route_figure,
+    timing_diagram,
+    timing_examples,
+    write_pdf,
+)
 
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
@@ -25,7 +42,7 @@ HTML_NAME = "site-report.html"
 PDF_NAME = "site-report.pdf"
 
 MAPS = (
-    ("map", "map.png", "Site map", "IDs on the luminaires; odd class filled, even hollow; regions shaded and labelled."),
+    ("map", "map.png", "Site map", "IDs on the luminaires; regions shaded and labelled between the luminaires."),
     ("coverage", "coverage.png", "Coverage",
      "Share of sampled camera poses (height, tilt, heading) whose view decodes to one place; dark is bad."),
     ("error", "error.png", "Expected positioning error",
@@ -66,6 +83,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     stops = checklist(plan, journal)
     bill = id_bill(plan)
     head = summary(plan, stops) + ([("as-built check", asbuilt["summary"])] if asbuilt else [])
+    advice = advice_section(plan)
+    show_class = plan.scheme == "paper"  # odd/even classes mean something only under the paper's region code
     title = f"VLP site report: {plan.source.get('file', plan_dir.name)}"
     figures = []
     budget = budget_rows(plan)
@@ -74,6 +93,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
         if anchor == "error" and plan.accuracy is not None:
             caption = f"{caption}, {plan.accuracy.method} method; {error_includes(plan)}" + \
                 ("; the budget below gives each term alone." if budget else ".")
+        if anchor == "map" and show_class:
+            caption += " Odd class filled, even hollow (the paper's checkerboard: odd IDs on odd luminaires)."
         figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
                         f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify)."))
     if plan.modulation is not None:
@@ -87,8 +108,9 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     generator = plan.generator or f"vlp-plan {__version__}"
     html = _render_html({
         "title": title, "generator": generator, "plan_hash": plan_hash, "journal_note": journal_note,
-        "summary": head, "stops": stops, "bill": bill,
-        "contents": [("summary", "Summary")] + [(a, n) for a, n, *_ in figures]
+        "summary": head, "stops": stops, "bill": bill, "advice": advice, "show_class": show_class,
+        "contents": [("summary", "Summary")] + ([("advice", "Site advice")] if advice else [])
+                    + [(a, n) for a, n, *_ in figures]
                     + [("budget", "Error budget")] * bool(budget) + [("bill", "ID bill"), ("checklist", "Checklist")]
                     + [("asbuilt", "As-built check")] * bool(asbuilt),
         "budget": budget, "error_includes": error_includes(plan), "asbuilt": asbuilt,
@@ -102,6 +124,7 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     sections = [(n, png, m) for _, n, png, _, m in figures]
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
-        bill_lines(bill), checklist_lines(stops), budget_lines(budget) if budget else None,
+        bill_lines(bill, show_class=show_class), checklist_lines(stops, show_class=show_class),
+        budget_lines(budget) if budget else None, advice_lines(advice) if advice and advice.rows else None,
         asbuilt_lines(asbuilt) if asbuilt else None))
     return [html_path, pdf_path]
