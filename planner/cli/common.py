@@ -212,13 +212,13 @@ def error_terms(args: argparse.Namespace):
     return terms.only("edge") if args.pixel_noise_only else terms
 
 
-def camera_from_args(args) -> Camera:
-    """The camera ``--camera`` names (a profile or a file), else the paper's."""
+def camera_from_args(args, default: Camera | None = None) -> Camera:
+    """The camera ``--camera`` names (a profile or a file), else ``default`` (the plan's), else the paper's."""
     from planner.camera import Camera
     from planner.camera_file import camera_from
 
     if not args.camera:
-        return Camera()
+        return default or Camera()
     return camera_from(args.camera)
 
 

@@ -41,9 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--image", metavar="PHOTO",
                    help="instead of OBSERVATION.json, a photo of the ceiling (JPEG or PNG, as the phone saved it): "
                    "every LED blob is found and decoded, then located (docs/photos.md)")
-    p.add_argument("--camera", metavar="NAME|YAML",
-                   help="with --image: the camera that took the photo, a profile name or camera file (docs/camera.md); "
-                   "default: the plan's camera")
+    cli.add_camera_flag(p, "with --image: the camera that took the photo; default: the plan's camera")
     p.add_argument("--method", choices=list(LOCATE_METHODS), default="perspective",
                    help="perspective: exact pose fit over every LED (default); paper: the paper's weak-perspective "
                    "distances and trilateration (Eq. 1-14)")
@@ -143,7 +141,7 @@ def locate_image(plan: PlanFile, args: argparse.Namespace) -> int:
     from planner.positioning.locate import Site
     from planner.twin.receiver import FrameFormat
 
-    camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
+    camera = cli.camera_from_args(args, plan.camera_model())
     site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
     blobs = photo_blobs(args.image, camera, fmt)
     fix = locate_photo(site, blobs, camera, args.method, args.max_residual_px)

@@ -37,9 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--photos", metavar="DIR",
                    help="as-built check: decode and locate every photo (.jpg, .jpeg, .png) in DIR and mark the "
                    "luminaires seen playing their planned ID or a wrong one (docs/photos.md)")
-    p.add_argument("--camera", metavar="NAME|YAML",
-                   help="with --photos: the camera that took them, a profile name or camera file (docs/camera.md); "
-                   "default: the plan's camera")
+    cli.add_camera_flag(p, "with --photos: the camera that took them; default: the plan's camera")
     p.add_argument("-o", "--outdir", metavar="DIR", help="where to write the report (default: PLAN's directory)")
     cli.common_flags(p, "print what was written, the flashing counts and the as-built check as JSON")
     return p
@@ -103,7 +101,7 @@ def photo_check(plan: PlanFile, args: argparse.Namespace) -> dict:
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file())
     if not files:
         raise UsageError(f"--photos {folder}: no {', '.join(SUFFIXES)} photos in it")
-    camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
+    camera = cli.camera_from_args(args, plan.camera_model())
     site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
     checks = []
     for k, path in enumerate(files, 1):

@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     xyz, radii, ids = plan.xyz, plan.radii, plan.ids
-    camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
+    camera = cli.camera_from_args(args, plan.camera_model())
     result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
                          tolerance_m=args.tolerance)
     recorded = (plan.verification.window_set if plan.verification else None) or {}
