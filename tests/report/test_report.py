@@ -135,8 +135,8 @@ def test_html_report_renders_in_chromium_with_every_image(site, tmp_path):
     seen = open_in_chromium(html, tmp_path / "report.png")
     assert seen["broken"] == [] and seen["errors"] == []
     assert seen["images"] == 5  # map, coverage, error, timing, route
-    assert seen["headings"] == ["Summary", "Site map", "Coverage", "Expected positioning error", "Frame timing",
-                                "Walking route", "Error budget", "ID bill", "Installers' checklist"]
+    assert seen["headings"] == ["Summary", "Site advice", "Site map", "Coverage", "Expected positioning error",
+                                "Frame timing", "Walking route", "Error budget", "ID bill", "Installers' checklist"]
     shot = (tmp_path / "report.png").read_bytes()
     assert shot[:8] == b"\x89PNG\r\n\x1a\n" and len(shot) > 20_000
     assert text.count('class="status-not-flashed"') == 32
@@ -196,7 +196,7 @@ def test_vlp_report_shows_the_flashing_status(site, tmp_path, monkeypatch, capsy
     seen = open_in_chromium(plan / "site-report.html", tmp_path / "flashed.png")
     assert seen["broken"] == [] and seen["errors"] == []
     (tmp_path / "pages").mkdir()
-    assert len(render_pdf(plan / "site-report.pdf", tmp_path / "pages")) == 9
+    assert len(render_pdf(plan / "site-report.pdf", tmp_path / "pages")) == 10  # with the site advice page
     assert not list(plan.glob(".site-report*"))  # no temporary files left behind
 
 
