@@ -21,12 +21,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from planner.camera import Camera
-from planner.defaults import MAX_RESIDUAL_PX
+from planner.defaults import ACCELEROMETER_SIGMA_DEG, MAX_RESIDUAL_PX
 from planner.errors import PositioningError
 from planner.positioning.fix import Fix, ellipse_residuals, observed, rms
-
-ACCELEROMETER_SIGMA_DEG = 1.0
-"""Default standard deviation of the gravity direction a phone's accelerometer gives [deg]."""
 
 DOWN = np.array([0.0, 0.0, -1.0])
 
