@@ -1,14 +1,96 @@
-"""Read a camera YAML file (documented in ``docs/camera.md``) into a :class:`Camera`."""
+"""Cameras from files and names: a camera YAML (``docs/camera.md``) or a bundled profile
+(``planner/data/cameras.yaml``: real phone cameras with the source of every figure)."""
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
 from pathlib import Path
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from planner._files import load_yaml
-from planner._schema import validated
+from planner._schema import Positive, Text, validated
 from planner.camera import Camera
-from planner.errors import InputError
+from planner.errors import InputError, UsageError
 from planner.plan_file import CameraFields
+
+PROFILES_FILE = "cameras.yaml"
+"""The bundled profiles, in ``planner/data/``."""
+
+
+class _ProfileFields(BaseModel):
+    """One entry of ``cameras.yaml``."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    role: Text
+    example: Text
+    row_time_range_s: tuple[Annotated[Positive, Field(le=1.0)], Annotated[Positive, Field(le=1.0)]]
+    camera: CameraFields
+    sources: dict[str, Text]
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A bundled camera profile: the camera (its ``name`` set), what it stands for, and its sources."""
+
+    camera: Camera
+    role: str
+    example: str
+    row_time_range_s: tuple[float, float]
+    sources: dict[str, str]
+
+    @property
+    def name(self) -> str:
+        return self.camera.name
+
+
+@cache
+def camera_profiles() -> dict[str, Profile]:
+    """The bundled profiles by name, in file order (checked as a camera file is)."""
+    with resources.as_file(resources.files("planner") / "data" / PROFILES_FILE) as path:
+        doc = load_yaml(path)
+    out = {}
+    for name, entry in doc.items():
+        f = validated(_ProfileFields, entry, f"{PROFILES_FILE}: {name}", "a camera profile")
+        cam = f.camera.model_copy(update={"name": name}).to_camera()
+        out[name] = Profile(cam, f.role, f.example, f.row_time_range_s, dict(f.sources))
+    return out
+
+
+def camera_profile(name: str) -> Camera:
+    """The bundled profile ``name``; :class:`UsageError` listing the names if there is none."""
+    profiles = camera_profiles()
+    if name not in profiles:
+        raise UsageError(f"--camera {name}: no such camera profile or file; profiles: {', '.join(profiles)} "
+                         "(vlp-plan --list-cameras), or give a camera YAML file")
+    return profiles[name].camera
+
+
+def camera_from(spec: str) -> Camera:
+    """``--camera NAME`` or ``--camera FILE``: a bundled profile's name, else a camera YAML file."""
+    if spec in camera_profiles():
+        return camera_profile(spec)
+    path = Path(spec)
+    if not path.exists() and path.suffix.lower() not in (".yaml", ".yml"):
+        return camera_profile(spec)  # neither a profile nor a file: the line lists the profiles
+    return read_camera(path)
+
+
+def profile_rows() -> list[dict]:
+    """One row per profile for ``--list-cameras``: name, role, lens, image size, horizontal field of view
+    [deg], row time and its range [s], and the figures' sources."""
+    rows = []
+    for name, p in camera_profiles().items():
+        c = p.camera
+        rows.append({"name": name, "role": p.role, "example": p.example, "lens": c.lens,
+                     "distortion": list(c.distortion), "width_px": c.width_px, "height_px": c.height_px,
+                     "fx_px": c.fx_px, "hfov_deg": round(math.degrees(c.hfov_rad), 2), "row_time_s": c.row_time_s,
+                     "row_time_range_s": list(p.row_time_range_s), "sources": p.sources})
+    return rows
 
 
 def read_camera(path: str | Path) -> Camera:

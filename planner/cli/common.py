@@ -152,23 +152,29 @@ def add_verify_flags(p: argparse.ArgumentParser) -> None:
                    f"window is protected [m] (default {INSTALL_TOLERANCE_M:g}"
                    + (", or the plan's" if p.prog == "vlp-verify" else "") + ")")
     if p.prog == "vlp-plan":
-        g.add_argument("--camera", metavar="YAML", help="camera file (docs/camera.md); default: the paper's camera")
+        add_camera_flag(g, "default: the paper's camera")
         g.add_argument("--no-verify", action="store_true",
                        help="skip verification of a paper or unique plan (needs an explicit --scheme; the window "
                        "scheme is built from verification and always verified)")
     else:
-        g.add_argument("--camera", metavar="YAML",
-                       help="camera file (docs/camera.md); default: the camera recorded in the plan")
+        add_camera_flag(g, "default: the camera recorded in the plan")
+
+
+def add_camera_flag(g, default: str) -> None:
+    """``--camera NAME|YAML``: a bundled profile (``vlp-plan --list-cameras``) or a camera file."""
+    g.add_argument("--camera", metavar="NAME|YAML",
+                   help="camera profile (paper, main, wide, ultrawide, ...: vlp-plan --list-cameras) or camera "
+                   f"file (docs/camera.md); {default}")
 
 
 def camera_from_args(args) -> Camera:
+    """The camera ``--camera`` names (a profile or a file), else the paper's."""
     from planner.camera import Camera
-    from planner.camera_file import read_camera
+    from planner.camera_file import camera_from
 
     if not args.camera:
         return Camera()
-
-    return read_camera(args.camera)
+    return camera_from(args.camera)
 
 
 def progress(message: str) -> None:

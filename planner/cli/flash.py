@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
+from planner.defaults import MAX_IMAGE_VERSION
 from planner.errors import ExitCode, InputError, UsageError
 
 if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
@@ -50,8 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--key-file", metavar="FILE", help="site key, hex or raw bytes (or env VLP_SITE_KEY, hex)")
     p.add_argument("--journal", metavar="JSON", help="as-built journal (default: as-built.json beside PLAN)")
     p.add_argument("--resume", action="store_true", help="skip drivers the journal records as verified")
-    p.add_argument("--image-version", type=cli.positive_int, metavar="N",
-                   help="sign exactly version N (drivers refuse one not above what they run); default: one above "
+    p.add_argument("--image-version", type=cli.count_up_to(MAX_IMAGE_VERSION), metavar="N",
+                   help=f"sign exactly version N, at most {MAX_IMAGE_VERSION:,} (a driver at 2^32 - 1 could never "
+                        "be updated again; drivers refuse one not above what they run); default: one above "
                         "the version each driver runs, at least the version in the plan's images, and never over "
                         "a newer image the journal shows came after this plan's (docs/flashing.md)")
     p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
@@ -108,7 +110,6 @@ def _targets(plan: PlanFile, args) -> list[Entry]:
 def plan_image(doc_path: Path, entry: Entry, digest: str) -> bytes:
     """The unsigned image the plan gives ``entry``, at the version of its file on disk; :class:`InputError`
     if the file is missing, damaged, of another plan, over the version bound, or differs in any byte."""
-    from planner.defaults import MAX_IMAGE_VERSION
     from planner.firmware.image import config_image, parse_config_image
     from planner.firmware.render import IMAGE_FILE, file_name
 
@@ -158,11 +159,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.json and not (args.bus or args.dry_run):
         raise UsageError("--json needs --bus or --dry-run: interactive mode talks to the installer on this terminal")
     say = sys.stderr if args.json else sys.stdout  # with --json, stdout carries the JSON document alone
-    from planner.defaults import MAX_IMAGE_VERSION
-
-    if args.image_version is not None and args.image_version > MAX_IMAGE_VERSION:
-        raise UsageError(f"--image-version {args.image_version:,}: vlp-flash signs versions up to "
-                         f"{MAX_IMAGE_VERSION:,} (a driver at 2^32 - 1 could never be updated again)")
     report: list[dict] = []
     doc_path = Path(args.plan)
     from planner.flash.flasher import flash_driver

@@ -40,7 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
         "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
     )
-    p.add_argument("layout", metavar="LAYOUT", help="drawing or layout file: .dxf, .ifc, .yaml/.yml or .csv")
+    p.add_argument("layout", metavar="LAYOUT", nargs="?",
+                   help="drawing or layout file: .dxf, .ifc, .yaml/.yml or .csv")
+    p.add_argument("--list-cameras", action="store_true",
+                   help="list the bundled camera profiles (--camera NAME) with their sources, and exit")
     p.add_argument("--leds", type=cli.count_up_to(MAX_LUMINAIRES), metavar="N",
                    help="expected luminaire count (a mismatch is an error); with only a room outline, "
                    "lay out N luminaires on a lattice inside it (at most 100,000)")
@@ -96,7 +99,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``vlp-plan``: the exit code (:class:`~planner.errors.ExitCode`); raises PlannerError on failure."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.list_cameras:
+        return _list_cameras(args.json)
+    if not args.layout:
+        parser.error("the following arguments are required: LAYOUT")
     from planner.pipeline import (
         FirmwareOptions,
         PlanOptions,
@@ -109,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
                          if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
+    camera = cli.camera_from_args(args)  # a bad --camera is refused before any work
     t0 = time.perf_counter()
     read_opts = cli.read_options(args)
     cli.progress(f"reading {args.layout}")
@@ -119,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
     cli.progress(f"planning {len(layout.luminaires)} luminaires")
-    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, cli.camera_from_args(args), not args.no_verify,
+    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, camera, not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
                                          args.driver_max_hz, args.install_tolerance, args.receiver))
@@ -231,6 +240,26 @@ def _print_summary(s: dict) -> None:
               f"max {length_text(a['max_m'])} over {a['located']} simulated poses (edge noise {a['noise_px']:g} px)")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
 
+
+
+def _list_cameras(as_json: bool) -> int:
+    """``--list-cameras``: the bundled profiles, as a table or JSON."""
+    from planner.camera_file import profile_rows
+
+    rows = profile_rows()
+    if as_json:
+        print(json.dumps({"cameras": rows}, indent=2))
+        return ExitCode.OK
+    print(f"{'name':<18} {'role':<10} {'lens':<8} {'image px':<10} {'hfov deg':>8}  {'row time us':<12} example")
+    for r in rows:
+        lo, hi = (1e6 * t for t in r["row_time_range_s"])
+        size, row = f"{r['width_px']}x{r['height_px']}", f"{1e6 * r['row_time_s']:g} ({lo:g}-{hi:g})"
+        print(f"{r['name']:<18} {r['role']:<10} {r['lens']:<8} {size:<10} {r['hfov_deg']:>8.1f}  {row:<12} "
+              f"{r['example']}")
+    print("\nsources (--json lists every figure's):")
+    for r in rows:
+        print(f"  {r['name']}: " + "; ".join(f"{k}: {v}" for k, v in r["sources"].items()))
+    return ExitCode.OK
 
 
 def console_main(argv: list[str] | None = None) -> int:

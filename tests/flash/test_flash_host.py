@@ -159,7 +159,7 @@ def test_versions_are_bounded_far_below_2_to_the_32(plans, tmp_path):
     assert got.returncode == 1 and len(got.stderr.splitlines()) == 1
     assert f"{path}: image version 4,000,000,000 is above the 1,000,000" in got.stderr
     got = _flash(str(plans / "a" / "plan.yaml"), *common, "--image-version", "4000000000")
-    assert got.returncode == 2 and "signs versions up to 1,000,000" in got.stderr
+    assert got.returncode == 2 and "--image-version: must be at most 1,000,000" in got.stderr
     assert not (tmp_path / "j.json").exists()  # nothing was flashed
     port = _sim()
     result = flash_driver(Link(port), 1, PLAN_IMAGE, KEY, Versions(floor=MAX_IMAGE_VERSION))

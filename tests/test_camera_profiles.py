@@ -1,0 +1,90 @@
+"""The bundled camera profiles (planner/data/cameras.yaml): what they claim, --camera NAME, --list-cameras."""
+
+import dataclasses
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import ROOT
+from planner.camera import Camera
+from planner.camera_file import camera_from, camera_profiles
+from planner.errors import UsageError
+
+PROFILES = camera_profiles()
+
+
+def test_the_library_holds_the_papers_camera_and_a_main_wide_and_ultra_wide_one():
+    assert {"paper", "main", "wide", "ultrawide", "ultrawide-fisheye"} <= set(PROFILES)
+    assert PROFILES["paper"].camera == dataclasses.replace(Camera(), name="paper")  # the default, named
+    hfov = {n: math.degrees(p.camera.hfov_rad) for n, p in PROFILES.items()}
+    assert 60 < hfov["main"] < 70 and 78 <= hfov["wide"] <= 80 and 110 <= hfov["ultrawide"] <= 120
+    assert PROFILES["wide"].camera.lens == "pinhole" and PROFILES["wide"].camera.distorted
+    assert PROFILES["ultrawide-fisheye"].camera.lens == "fisheye" and PROFILES["ultrawide-fisheye"].camera.distorted
+
+
+@pytest.mark.parametrize("name", sorted(PROFILES))
+def test_every_profile_is_named_sourced_and_invertible_over_its_whole_image(name):
+    p = PROFILES[name]
+    cam = p.camera
+    assert cam.name == name and p.role in ("main", "wide", "ultra-wide") and p.example
+    lo, hi = p.row_time_range_s
+    assert lo <= cam.row_time_s <= hi and 5e-6 <= lo < hi <= 5e-5
+    assert {"row_time_s", "distortion"} <= set(p.sources) and ({"fx_px", "hfov_deg"} & set(p.sources))
+    assert all(len(s) > 20 for s in p.sources.values())
+    # The lens map must stay one-to-one over the whole image: every pixel has one ray, and it projects back.
+    u, v = np.meshgrid(np.linspace(0, cam.width_px, 41), np.linspace(0, cam.height_px, 31))
+    px = np.stack([u.ravel(), v.ravel()], axis=1)
+    rays = cam.rays(px)
+    assert np.isfinite(rays).all() and (rays[:, 2] > 0).all()
+    assert np.abs(cam.project(rays) - px).max() < 1e-6
+    assert camera_from(name) == cam and Camera.from_dict(cam.to_dict()).name == name
+
+
+def test_the_diagonal_field_of_view_of_the_ultra_wide_is_the_one_its_makers_quote():
+    cam = PROFILES["ultrawide"].camera
+    corner = cam.rays(np.array([[0.0, 0.0]]))[0]
+    assert 2 * math.degrees(math.acos(corner[2])) == pytest.approx(123, abs=0.5)  # Galaxy S20's quoted 123 deg
+
+
+def test_an_unknown_name_lists_the_profiles_and_a_camera_file_still_reads(tmp_path):
+    with pytest.raises(UsageError) as err:
+        camera_from("pixel9")
+    assert str(err.value).startswith("--camera pixel9: no such camera profile or file; profiles: paper, main, wide")
+    (tmp_path / "cam.yaml").write_text("hfov_deg: 70\nname: mine\n")
+    assert camera_from(str(tmp_path / "cam.yaml")).name == "mine"
+
+
+def test_vlp_plan_lists_the_cameras_without_a_layout(tmp_path):
+    done = subprocess.run(["vlp-plan", "--list-cameras"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert done.returncode == 0 and done.stderr == ""
+    lines = done.stdout.splitlines()
+    assert lines[0].split()[:4] == ["name", "role", "lens", "image"]
+    assert any(line.split()[:5] == ["wide", "wide", "pinhole", "4032x3024", "79.0"] for line in lines)
+    shown = json.loads(subprocess.run(["vlp-plan", "--list-cameras", "--json"], capture_output=True, text=True,
+                                      timeout=60).stdout)["cameras"]
+    assert [c["name"] for c in shown] == list(PROFILES)
+    assert all(c["sources"] and c["hfov_deg"] > 0 and c["row_time_range_s"][0] > 0 for c in shown)
+    assert list(tmp_path.iterdir()) == []
+    bare = subprocess.run(["vlp-plan"], capture_output=True, text=True, timeout=60)
+    assert bare.returncode == 2 and "required: LAYOUT" in bare.stderr and bare.stderr.count("\n") == 1
+
+
+def test_vlp_plan_and_verify_take_a_profile_by_name(tmp_path):
+    out = tmp_path / "out"
+    quick = ["--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0", "--poses-per-m2", "50"]
+    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--camera", "wide",
+                           *quick], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    camera = yaml.safe_load((out / "plan.yaml").read_text())["camera"]
+    assert camera["name"] == "wide" and camera["distortion"][:2] == [-0.08, 0.02] and camera["fx_px"] == 2561.2
+    verify = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "ultrawide", "--poses-per-m2", "50",
+                             "--json"], capture_output=True, text=True, timeout=120)
+    assert verify.returncode in (0, 3), verify.stderr
+    refused = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "iphone"], capture_output=True,
+                             text=True, timeout=60)
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1
+    assert "--camera iphone: no such camera profile or file; profiles: paper, main" in refused.stderr
