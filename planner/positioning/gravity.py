@@ -7,7 +7,8 @@ ceiling at ``s (x_i/z_i, y_i/z_i)`` from the camera in a frame turned by the unk
 ``s`` the ceiling's height above the camera. The LEDs' known plan offset ``d = x_b - x_a`` equals
 ``s R(ψ) (o_b - o_a)``, so ``s = |d| / |o_b - o_a|`` and ``ψ`` is the angle between the two; then
 the camera's plan position is ``x_a - s R(ψ) o_a`` and its height ``z_a - s``. That start is refined
-by least squares over the full pose on every identified LED's bearing (one pixel, whitened) and
+by least squares over the full pose on every identified LED's exact image against its ellipse
+(centre and shape, whitened by one pixel: the ellipses' sizes also measure the distance) and on
 the measured gravity (whitened by its uncertainty), so the gravity error is weighed, not trusted.
 Rays come from :meth:`planner.camera.Camera.rays`, so a distorting lens is handled.
 """
@@ -22,8 +23,9 @@ from scipy.spatial.transform import Rotation
 
 from planner.camera import Camera
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, MAX_RESIDUAL_PX
+from planner.ellipse import Ellipse, fit_ellipse
 from planner.errors import PositioningError
-from planner.positioning.fix import Fix, ellipse_residuals, observed, rms
+from planner.positioning.fix import Fix, observed, residuals_batch, rms
 
 DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -55,36 +57,48 @@ def two_point_pose(xyz2: np.ndarray, rays2: np.ndarray, gravity_cam: np.ndarray)
     return position, turn @ level
 
 
-def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, rays: np.ndarray,
-                   gravity_cam: np.ndarray, sigma_rad: float, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """Least squares over the pose on the bearings (whitened by one pixel) and gravity (by ``sigma_rad``)."""
-    bearing_sigma = 1.0 / max(camera.fx_px, camera.fy_px)
+def ideal_ellipses(ellipses, camera: Camera) -> list[Ellipse]:
+    """The ellipses as an ideal pinhole of the same intrinsics would see them: 64 rim points of each
+    undistorted (:meth:`planner.camera.Camera.ideal_pixels`) and an ellipse fitted again."""
+    if not camera.distorted:
+        return list(ellipses)
+    phi = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+    ring = np.column_stack([np.cos(phi), np.sin(phi)])
+    return [fit_ellipse(camera.ideal_pixels(e.centre + ring @ e.shape.T)) for e in ellipses]
+
+
+def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
+                   ellipses: list[Ellipse], gravity_cam: np.ndarray, sigma_rad: float,
+                   camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least squares over the pose on every LED's exact image against its ellipse (centre and shape,
+    whitened by one pixel; ideal-pinhole ellipses, :func:`ideal_ellipses`) and on gravity (whitened by
+    ``sigma_rad``). Returns the position, rotation and the ellipses' RMS residual [px]."""
+    ideal = camera.ideal()
+    centres, shapes = observed(ideal_ellipses(ellipses, camera))
     g = np.asarray(gravity_cam, float) / np.linalg.norm(gravity_cam)
+    args = (rotation, xyz, radii, centres, shapes, ideal)
 
     def fun(x):
         rot = rotation @ Rotation.from_rotvec(x[:3]).as_matrix()
-        to = (xyz - x[3:]) @ rot  # site -> camera, row-wise
-        to /= np.linalg.norm(to, axis=1, keepdims=True)
-        bearing = np.cross(rays, to).ravel() / bearing_sigma
-        return np.r_[bearing, np.cross(g, rot.T @ DOWN) / max(sigma_rad, 1e-9)]
+        return np.r_[residuals_batch(x[None], *args)[0], np.cross(g, rot.T @ DOWN) / max(sigma_rad, 1e-9)]
 
     fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], method="lm", x_scale="jac")
-    return fit.x[3:], rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
+    rot = rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
+    return fit.x[3:], rot, rms(fit.fun[:-3])
 
 
 def locate_gravity(xyz: np.ndarray, radii: np.ndarray, ellipses, camera: Camera, gravity_cam: np.ndarray,
                    sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)) -> Fix:
     """Camera pose from two or more identified LEDs (``xyz`` N x 3 [m]), their ellipses and gravity
     (camera frame, pointing down); the first two LEDs give the closed-form start."""
-    xyz = np.asarray(xyz, float)
+    xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
     if len(xyz) < 2:
         raise PositioningError(f"{len(xyz)} usable LED{'s' if len(xyz) != 1 else ''}: a fix with gravity needs two")
-    centres, shapes = observed(list(ellipses))
-    rays = camera.rays(centres)
+    ellipses = list(ellipses)
+    rays = camera.rays(np.array([e.centre for e in ellipses]))
     position, rotation = two_point_pose(xyz[:2], rays[:2], gravity_cam)
-    position, rotation = refine_gravity(position, rotation, xyz, rays, gravity_cam, sigma_rad, camera)
-    ideal, at = camera.ideal(), camera.ideal_pixels(centres)
-    residual = rms(ellipse_residuals(position, rotation, xyz, np.asarray(radii, float), at, shapes, ideal))
+    position, rotation, residual = refine_gravity(position, rotation, xyz, radii, ellipses, gravity_cam, sigma_rad,
+                                                  camera)
     return Fix(position, rotation, residual, "gravity", np.arange(len(xyz)))
 
 
