@@ -113,3 +113,12 @@ def test_twin_locates_a_gravity_plan_with_accelerometer_noise(gravity_plan):
     summary = json.loads(done.stdout)
     # rendered frames, 1 deg accelerometer noise, two-LED windows: measured 40 of 40 within 10 cm (2026-12-03)
     assert summary["located"] >= 11 and summary["error_m"]["median"] < 0.03
+
+
+def test_site_report_shows_coverage_per_receiver_mode(gravity_plan):
+    plan, summary = gravity_plan
+    done = subprocess.run(["vlp-report", str(plan)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    html = (plan.parent / "site-report.html").read_text()
+    share = f"two LEDs plus gravity {100 * summary['receiver']['coverage']['gravity']:.1f} %"
+    assert "receiver" in html and share in html
