@@ -80,7 +80,7 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
     that verifies; else unique), each verified on the sample's two-LED windows and the pair set."""
     poses, _ = sample.first(per_m2)
     pp: PosePairs = find_pairs(poses, xyz, radii, camera)
-    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m)
+    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, sample.area)
     sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
 
     def verified(a: Assignment) -> tuple[Assignment, Verification]:

@@ -21,16 +21,25 @@ counts against a pair only when deeper than ``2 d``; spindles over every centre 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.camera import Camera
-from planner.verify.envelope import Envelope, NotProvable, envelope
-
-# The three-LED proof's geometric tests, shared (they take any pair and any LEDs to test).
-from planner.verify.proof import MIN_CELL_M, NEAR, PAIR_BUDGET, _apex_cover, _hull_depth, _near, _spindle_count, _strip
+from planner.verify.envelope import Envelope, NotProvable
+from planner.verify.proof import (  # the three-LED proof's geometric tests: they take any pair and LEDs
+    MIN_CELL_M,
+    NEAR,
+    PAIR_BUDGET,
+    _apex_cover,
+    _hull_depth,
+    _near,
+    _spindle_count,
+    _strip,
+)
+from planner.verify.window_set import SAME_HEIGHT_M
 
 SEARCH_BUDGET = 3_000
 """Most pairs whose axis points are searched by cells (about 14 ms each, measured on grid-32);
@@ -56,6 +65,8 @@ def _axis_alive(xy: np.ndarray, radii: np.ndarray, pairs: np.ndarray, env: Envel
     near = _near(tree, 0.5 * (a + b), min(NEAR, n))
     smallest = radii[pairs].min(axis=1)
     reach, rho, d, m = env.axis_reach_m, env.disc_m, env.install_m, 2.0 * env.install_m + 1e-9
+    area = np.array(env.axis_area) if isinstance(env, PairEnvelope) and env.axis_area else None
+    spread = env.axis_spread_m if isinstance(env, PairEnvelope) else math.inf
     alive = np.zeros(len(pairs), dtype=bool)
     which = np.arange(len(pairs))
     centre, half = 0.5 * (a + b), np.full(len(pairs), reach)
@@ -67,6 +78,8 @@ def _axis_alive(xy: np.ndarray, radii: np.ndarray, pairs: np.ndarray, env: Envel
             sl = slice(c, c + _CELL_CHUNK)
             ww, qq, gg = w[sl], q[sl], grow[sl]
             out[sl] |= (np.linalg.norm(qq - a[ww], axis=1) - gg > reach) | (np.linalg.norm(qq - b[ww], axis=1) - gg > reach)
+            if area is not None:  # the camera stands in the working area: the axis point within the spread of it
+                out[sl] |= _outside_by(qq, area) - gg > spread
             cand = np.hstack([near[ww], _near(tree, qq, min(_NEAR_CELL, n))])
             other = (cand != pairs[ww, :1]) & (cand != pairs[ww, 1:])
             close = np.linalg.norm(xy[cand] - qq[:, None], axis=2) < rho - d - gg[:, None]
@@ -126,6 +139,92 @@ def possible_window_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budg
 
 
 @dataclass(frozen=True)
+class PairEnvelope(Envelope):
+    """The proof's envelope with the lens's true angles and two bounds that keep it finite past the horizon.
+
+    The camera stands in the working area, so the axis point lies within ``far tan(tilt)`` of it
+    (``axis_area``, ``axis_spread_m``); two LEDs in view are two LEDs of the site, no farther apart
+    than its diameter; and a point in view lies within ``axis_bound_m`` of the axis point.
+    """
+
+    site_diameter_m: float = math.inf
+    axis_bound_m: float = math.inf
+    axis_spread_m: float = math.inf
+    axis_area: tuple = ()
+
+    @property
+    def _bounded(self) -> bool:
+        return self.tilt_rad + self.corner_rad < math.pi / 2 - 1e-9
+
+    @property
+    def reach_m(self) -> float:
+        return min(super().reach_m if self._bounded else math.inf, self.site_diameter_m)
+
+    @property
+    def axis_reach_m(self) -> float:
+        return min(super().axis_reach_m if self._bounded else math.inf, self.axis_bound_m)
+
+    def summary(self) -> dict:
+        out = {k: v for k, v in super().summary().items() if self._bounded or "reach" not in k}
+        out.update(reach_m=round(self.reach_m, 4), axis_reach_m=round(self.axis_reach_m, 4),
+                   axis_within_m_of_working_area=round(self.axis_spread_m, 4))
+        return out
+
+
+SURE_CAP_RAD = math.radians(75.0)
+"""The sure-seen cone is narrowed so that tilt plus its half-angle stays under this (a bounded spindle radius)."""
+
+
+def pair_envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float,
+                  area: np.ndarray | None) -> PairEnvelope:
+    """The pair proof's envelope: the three-LED proof's where that exists, with the lens's angles from
+    :meth:`~planner.camera.Camera.rays` (edge middles and corners: a radial lens's extremes), the sure cone
+    narrowed to :data:`SURE_CAP_RAD` less the tilt, and reach bounded by the site; :class:`NotProvable` else."""
+    z = xyz[:, 2]
+    if np.ptp(z) >= SAME_HEIGHT_M:
+        raise NotProvable(f"the luminaires are not on one ceiling plane (heights {z.min():.3f}-{z.max():.3f} m)")
+    if abs(camera.fx_px - camera.fy_px) > 1e-9 * camera.fx_px:
+        raise NotProvable("the camera's pixels are not square (fx != fy)")
+    ceiling = float(np.median(z))
+    near, far = ceiling - camera.max_height_m, ceiling - camera.min_height_m
+    r = float(np.max(radii))
+    if near <= r:
+        raise NotProvable(f"the receiver may come within {near:.2f} m of the ceiling, inside an LED's radius")
+    w, h, cx, cy = float(camera.width_px), float(camera.height_px), camera.cx_px, camera.cy_px
+
+    def angle(px):
+        return np.arccos(np.clip(camera.rays(np.array(px, float))[:, 2], -1.0, 1.0))
+
+    edges, corners = angle([[0, cy], [w, cy], [cx, 0], [cx, h]]), angle([[0, 0], [w, 0], [0, h], [w, h]])
+    if not (np.isfinite(edges).all() and np.isfinite(corners).all()):
+        raise NotProvable("the lens model folds inside the image: its angles at the border are not defined")
+    disc = math.asin(r / near)
+    inscribed = min(float(edges.min()), SURE_CAP_RAD - camera.max_tilt_rad + disc)
+    if inscribed - disc <= 0:
+        raise NotProvable("an LED's disc can fill the cone inscribed in the image")
+    spread = far * math.tan(camera.max_tilt_rad)
+    pts = np.vstack([xyz[:, :2]] + ([np.asarray(area, float)] if area is not None else []))
+    diameter = float(np.max(np.linalg.norm(pts[:, None] - pts[None], axis=2))) if len(pts) < 4000 else math.inf
+    led_diameter = float(np.max(np.linalg.norm(xyz[:, None, :2] - xyz[None, :, :2], axis=2))) if len(xyz) < 4000 \
+        else math.inf
+    return PairEnvelope(ceiling, near, far, camera.max_tilt_rad, inscribed, float(corners.max()), disc,
+                        float(install_tolerance_m), led_diameter + 2 * install_tolerance_m,
+                        diameter + spread + 2 * install_tolerance_m, spread,
+                        tuple(map(tuple, np.asarray(area, float))) if area is not None else ())
+
+
+def _outside_by(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Distance [m] of ``points`` (M, 2) from ``polygon`` (K, 2): 0 inside."""
+    from matplotlib.path import Path as PolygonPath
+
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    ab = b - a
+    t = np.clip(np.einsum("mkd,kd->mk", points[:, None] - a[None], ab) / np.maximum((ab ** 2).sum(1), 1e-18), 0, 1)
+    dist = np.linalg.norm(points[:, None] - (a[None] + t[..., None] * ab[None]), axis=2).min(axis=1)
+    return np.where(PolygonPath(polygon).contains_points(points), 0.0, dist)
+
+
+@dataclass(frozen=True)
 class PairProof:
     """The outcome of :func:`prove_pair_set`: the proved pairs, or why there are none."""
 
@@ -138,10 +237,12 @@ class PairProof:
         return self.pairs is not None
 
 
-def prove_pair_set(xyz: np.ndarray, radii: np.ndarray, camera: Camera, install_tolerance_m: float) -> PairProof:
-    """Every pair that may be a two-LED window at some pose, or the reason this site and camera are not proved."""
+def prove_pair_set(xyz: np.ndarray, radii: np.ndarray, camera: Camera, install_tolerance_m: float,
+                   area: np.ndarray | None = None) -> PairProof:
+    """Every pair that may be a two-LED window at some pose with the camera over ``area`` (the working area;
+    None: anywhere), or the reason this site and camera are not proved."""
     try:
-        env = envelope(camera, xyz, radii, install_tolerance_m)
+        env = pair_envelope(camera, xyz, radii, install_tolerance_m, area)
         return PairProof(possible_window_pairs(xyz[:, :2], radii, env), "", env.summary())
     except NotProvable as exc:
         return PairProof(None, str(exc), None)
