@@ -29,7 +29,7 @@ def test_every_sampled_two_led_window_is_in_the_proved_pair_set():
         poses = sample_poses(area, cam, 3000, seed=7)
         pp = find_pairs(poses, xyz, radii, cam)
         assert 0.5 < pp.covered.mean() < 1.0  # some poses see two LEDs, some do not
-        proof = prove_pair_set(xyz, radii, cam, 0.0, area)
+        proof = prove_pair_set(xyz, radii, cam, 0.03, area)
         assert proof.complete, proof.reason
         proved = {tuple(p) for p in proof.pairs.tolist()}
         sampled = {tuple(p) for p in pp.pairs[pp.covered].tolist()}
