@@ -51,13 +51,31 @@ _NEAR_CELL = 4
 """LEDs nearest each cell's centre tested against it, beside those nearest the pair's middle."""
 
 
+def _depth_in_triangles(a: np.ndarray, b: np.ndarray, apex: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Depth of ``x`` (C, K, 2) in the triangles ``a b apex_j`` (a, b (C, 2), apex (C, J, 2)), least over ``j``
+    (C, K); negative outside one of them."""
+    p = [np.broadcast_to(a[:, None], apex.shape), np.broadcast_to(b[:, None], apex.shape), apex]
+    orient = np.sign((p[1][..., 0] - p[0][..., 0]) * (p[2][..., 1] - p[0][..., 1])
+                     - (p[1][..., 1] - p[0][..., 1]) * (p[2][..., 0] - p[0][..., 0]))  # (C, J)
+    depth = np.full(x.shape[:2] + apex.shape[1:2], np.inf)
+    for i in range(3):
+        u, v = p[i], p[(i + 1) % 3]
+        e = v - u
+        length = np.maximum(np.linalg.norm(e, axis=-1), 1e-12)
+        cross = e[:, None, :, 0] * (x[:, :, None, 1] - u[:, None, :, 1]) - e[:, None, :, 1] * (x[:, :, None, 0] - u[:, None, :, 0])
+        depth = np.minimum(depth, orient[:, None] * cross / length[:, None])
+    return np.where((orient != 0)[:, None], depth, -np.inf).min(axis=2)
+
+
 def _axis_alive(xy: np.ndarray, radii: np.ndarray, pairs: np.ndarray, env: Envelope, tree: cKDTree) -> np.ndarray:
     """Whether some axis point ``q`` of case B is not excluded for each pair (M, 2), by cells.
 
     ``q`` lies within the axis reach of both members. A cell (centre ``q0``, half-side ``s``) is
     excluded when it lies beyond that reach, when another LED lies within ``ρ - d - s sqrt 2`` of
     ``q0`` (it would lie in ``E(α')`` for every ``q`` of the cell), or when a disc no larger than the
-    members' lies deeper than ``2 d`` in ``conv({a, b} ∪ D(q0, ρ - s sqrt 2))``. A pair is kept as soon
+    members' lies deeper than ``2 d`` in ``conv({a, b} ∪ D(q0, ρ - s sqrt 2))``, or in every triangle
+    ``a b c`` for the cell's corners ``c`` (the axis points ``q`` with that LED deep in ``a b q`` form
+    a convex set, the meet of two wedges; every hull holds its triangle ``a b q``). A pair is kept as soon
     as a cell centre is not excluded with the full ``ρ``, or a cell reaches :data:`MIN_CELL_M`.
     """
     n = len(xy)
@@ -84,8 +102,12 @@ def _axis_alive(xy: np.ndarray, radii: np.ndarray, pairs: np.ndarray, env: Envel
             other = (cand != pairs[ww, :1]) & (cand != pairs[ww, 1:])
             close = np.linalg.norm(xy[cand] - qq[:, None], axis=2) < rho - d - gg[:, None]
             out[sl] |= (close & other).any(axis=1)
+            small_all = radii[cand] <= smallest[ww][:, None]
+            corners = qq[:, None] + (gg / np.sqrt(2))[:, None, None] * off[None]
+            deep = _depth_in_triangles(a[ww], b[ww], corners, xy[cand]) > m
+            out[sl] |= (deep & other & small_all).any(axis=1)
             r = rho - gg
-            ok = r > 0
+            ok = (r > 0) & ~out[sl]
             if ok.any():
                 tri = np.stack([a[ww[ok]], b[ww[ok]], b[ww[ok]]], axis=1)
                 depth = _hull_depth(tri, qq[ok], r[ok], xy[cand[ok]])
