@@ -25,6 +25,15 @@ LOCATE_METHODS = ("paper", "perspective")
 DRIVER_MAX_HZ = 20_000.0
 """Default fastest chip rate a luminaire driver switches cleanly [Hz] (``--driver-max-hz``)."""
 
+VIDEO_FPS = 30.0
+"""Default video frame rate of the receiver [1/s] (``--video-fps``), for frames read over several video frames."""
+
+MAX_VIDEO_FPS = 1000.0
+"""Largest ``--video-fps`` taken (phones film at 24-240 fps)."""
+
+MAX_VIDEO_FRAMES = 4
+"""Most consecutive video frames a plan may ask the phone to read a frame over (``--max-video-frames``)."""
+
 ERROR_POSES_PER_M2 = 4.0
 """Default density of the poses an error map samples [1/m2] (each is observed and located)."""
 

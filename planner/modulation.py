@@ -14,6 +14,9 @@ The chip rate must satisfy four limits at once (docs/modulation.md):
 - driver: ``rate <= driver_max_hz``, what the luminaire's driver can switch.
 
 The rate chosen is the geometric mean of the bounds, to three significant digits.
+When not even one frame fits, the frame is read over ``k <= 4`` consecutive video
+frames instead (:mod:`planner.multiframe`): the rate is then the whole-hertz rate
+within the other three limits at which ``k`` windows of the smallest image cover it.
 """
 
 from __future__ import annotations
@@ -24,10 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera import Camera, disc_image_rows
-from planner.defaults import DRIVER_MAX_HZ
+from planner.defaults import DRIVER_MAX_HZ, MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.errors import PlanningError
 from planner.frame import LineCode, frame_chips
 from planner.layout.model import area_m2
+from planner.multiframe import MAX_RATE_HZ, VideoFit, fit_video, rows_needed
 from planner.verify.windows import PoseSample
 
 FLICKER_HZ = 200.0
@@ -55,8 +59,19 @@ class Timing:
     frame_fit_min_hz: float
     resolution_max_hz: float
     driver_max_hz: float
+    video: VideoFit | None = None  # read over video.frames video frames; None: one LED image holds a frame
 
     def summary(self) -> dict:
+        return {**self._summary(), **(self._video_summary() if self.video else {})}
+
+    def _video_summary(self) -> dict:
+        v = self.video
+        assert v is not None
+        return {"video_frames": v.frames, "video_fps": v.video_fps, "frame_offset_chips": round(v.offset_chips, 6),
+                "window_chips": round(v.window_chips, 3), "overlap_margin_chips": round(v.margin_chips, 3),
+                "video_fps_tolerance": v.fps_tolerance}
+
+    def _summary(self) -> dict:
         return {"chip_rate_hz": self.chip_rate_hz, "frame_chips": self.frame_chips, "max_run": self.max_run,
                 "frame_period_s": round(self.frame_chips / self.chip_rate_hz, 9),
                 "frames_in_smallest_image": round(self.smallest_image_rows * self.row_time_s * self.chip_rate_hz
@@ -126,10 +141,82 @@ class Modulation:
         return {"line_code": self.code.name, "preamble": self.code.preamble, **self.timing.summary()}
 
 
+def choose_video_timing(frame_len: int, max_run: int, rows: float, row_time_s: float, *,
+                        driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ,
+                        video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES) -> Timing:
+    """The chip rate for reading a frame over the fewest video frames (2 .. ``max_frames``), or
+    :class:`PlanningError` saying what would fit."""
+    flicker = 2 * max_run * flicker_hz
+    resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
+    high = min(resolution, driver_max_hz)
+    fit = fit_video(frame_len, rows, row_time_s, flicker, high, video_fps, max_frames)
+    if fit is None:
+        raise PlanningError(_video_misfit(frame_len, rows, row_time_s, flicker, driver_max_hz, video_fps, max_frames))
+    return Timing(fit.chip_rate_hz, frame_len, max_run, rows, row_time_s, 0, flicker, frame_len / (rows * row_time_s),
+                  resolution, driver_max_hz, fit)
+
+
+def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: float, driver_max_hz: float,
+                  video_fps: float, max_frames: int) -> str:
+    """Why ``max_frames`` video frames do not cover the frame, and the smallest image or row time that would."""
+    def high(row_s: float) -> float:
+        return min(1.0 / (ROWS_PER_CHIP * row_s), driver_max_hz)
+
+    what = []
+    need = rows_needed(frame_len, row_time_s, flicker_hz, high(row_time_s), video_fps, max_frames)
+    if need is not None:
+        what.append(f"LED images of at least {need:.1f} rows (larger or closer LEDs, or a narrower lens)")
+    step_us = max(0.1, round(row_time_s * 1e6 / 100, 1))  # up to three times the row time, 200 tries at most
+    slower = next((t for t in np.round(row_time_s * 1e6 + np.arange(1, 201) * step_us, 1) * 1e-6
+                   if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames)), None)
+    if slower is not None:  # coverage is not monotonic in the row time: name one that fits
+        what.append(f"a camera with a slower rolling shutter, e.g. a row time of {slower * 1e6:.1f} us")
+    resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
+    faster = _fastest_needed(frame_len, rows, row_time_s, flicker_hz, driver_max_hz, resolution, video_fps,
+                             max_frames)
+    if faster is not None:
+        what.append(f"drivers that switch at least {faster:,.0f} Hz (--driver-max-hz {faster:.0f})")
+    if max_frames < MAX_VIDEO_FRAMES and fit_video(frame_len, rows, row_time_s, flicker_hz, high(row_time_s),
+                                                   video_fps, MAX_VIDEO_FRAMES):
+        what.insert(0, f"--max-video-frames {MAX_VIDEO_FRAMES}")
+    return (f"nor can it be read over up to {max_frames} video frames at {video_fps:g} fps (the windows of that many "
+            f"LED images of {rows:.1f} rows do not cover it); "
+            + ("what would: " + ", or ".join(what) if what else "use fewer bits"))
+
+
+def _fastest_needed(frame_len: int, rows: float, row_time_s: float, flicker_hz: float, driver_max_hz: float,
+                    resolution_hz: float, video_fps: float, max_frames: int) -> float | None:
+    """The slowest driver (whole kHz) above ``driver_max_hz`` at which the frames would fit, or None (bisection: a
+    faster driver only adds rates)."""
+    def fits(khz: int) -> bool:
+        return fit_video(frame_len, rows, row_time_s, flicker_hz, min(khz * 1e3, resolution_hz), video_fps,
+                         max_frames) is not None
+
+    lo, hi = math.floor(min(driver_max_hz, MAX_RATE_HZ) / 1e3), math.floor(min(resolution_hz, MAX_RATE_HZ) / 1e3)
+    if hi <= lo or not fits(hi):
+        return None
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if fits(mid) else (mid, hi)
+    return hi * 1e3
+
+
 def modulate(words: np.ndarray, word_bits: int, code: LineCode, rows: float, camera: Camera, *,
-             driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ) -> Modulation:
-    """Frames for the words the luminaires send (``id - 1`` or codewords, ``word_bits`` bits)."""
+             driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ, video_fps: float = VIDEO_FPS,
+             max_video_frames: int = MAX_VIDEO_FRAMES) -> Modulation:
+    """Frames for the words the luminaires send (``id - 1`` or codewords, ``word_bits`` bits): read from one
+    LED image when a frame fits in it, else over the fewest video frames up to ``max_video_frames``."""
     frames = [frame_chips(int(w), word_bits, code) for w in words]
-    timing = choose_timing(len(frames[0]), code.max_run, rows, camera.row_time_s,
-                           driver_max_hz=driver_max_hz, flicker_hz=flicker_hz)
+    try:
+        timing = choose_timing(len(frames[0]), code.max_run, rows, camera.row_time_s,
+                               driver_max_hz=driver_max_hz, flicker_hz=flicker_hz)
+    except PlanningError as exc:
+        if max_video_frames < 2:
+            raise
+        try:
+            timing = choose_video_timing(len(frames[0]), code.max_run, rows, camera.row_time_s,
+                                         driver_max_hz=driver_max_hz, flicker_hz=flicker_hz, video_fps=video_fps,
+                                         max_frames=max_video_frames)
+        except PlanningError as why:
+            raise PlanningError(f"{exc}; {why}") from None
     return Modulation(code, timing, frames)

@@ -26,6 +26,7 @@ from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
+from planner.multiframe import MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
@@ -71,6 +72,8 @@ class PlanOptions:
     install_tolerance_m: float = INSTALL_TOLERANCE_M
     receiver: str = "three"
     accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG
+    video_fps: float = VIDEO_FPS
+    max_video_frames: int = MAX_VIDEO_FRAMES
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -251,7 +254,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         rows = smallest_pair_image_rows(xyz, radii, cam, sample)
     else:
         rows = smallest_window_image_rows(xyz, radii, cam, sample)
-    modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz)
+    modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
+                          video_fps=options.video_fps, max_video_frames=options.max_video_frames)
     accuracy = None
     if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,

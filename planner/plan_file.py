@@ -26,6 +26,8 @@ from planner.defaults import (
     MAX_HEIGHT_M,
     MAX_IMAGE_PX,
     MAX_RADIUS_M,
+    MAX_VIDEO_FPS,
+    MAX_VIDEO_FRAMES,
     MIN_RADIUS_M,
 )
 from planner.errors import InputError
@@ -141,6 +143,17 @@ class ModulationFields(_Section):
     frames_in_smallest_image: Finite
     smallest_image_rows: Positive
     row_time_s: Positive
+    # read over video_frames consecutive video frames (docs/modulation.md); absent in single-frame plans
+    video_frames: Annotated[int, Strict(), Field(ge=1, le=MAX_VIDEO_FRAMES)] = 1
+    video_fps: Annotated[Positive, Field(le=MAX_VIDEO_FPS)] | None = None
+    frame_offset_chips: Annotated[Finite, Field(ge=0)] | None = None
+    window_chips: Annotated[Finite, Field(ge=0)] | None = None
+
+    @model_validator(mode="after")
+    def _video_fps_given(self) -> ModulationFields:
+        if self.video_frames > 1 and self.video_fps is None:
+            raise ValueError(f"video_frames is {self.video_frames} but video_fps is missing")
+        return self
 
 
 class Verification(_Section):

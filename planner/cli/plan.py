@@ -20,8 +20,11 @@ from planner.defaults import (
     MAX_MCU_CLOCK_HZ,
     MAX_POSES_PER_M2,
     MAX_TIME_LIMIT_S,
+    MAX_VIDEO_FPS,
+    MAX_VIDEO_FRAMES,
     RECEIVERS,
     SCHEMES,
+    VIDEO_FPS,
 )
 from planner.errors import ExitCode, UsageError
 
@@ -71,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "1.5 chips per bit, runs <= 5); default manchester")
     g.add_argument("--driver-max-hz", type=cli.positive_float, default=DRIVER_MAX_HZ, metavar="HZ",
                    help=f"fastest chip rate the luminaire drivers switch (default {DRIVER_MAX_HZ:g})")
+    g.add_argument("--video-fps", type=cli.at_most(MAX_VIDEO_FPS), default=VIDEO_FPS, metavar="FPS",
+                   help=f"the receiver's video frame rate, for frames read over several video frames "
+                   f"(default {VIDEO_FPS:g})")
+    g.add_argument("--max-video-frames", type=cli.count_up_to(MAX_VIDEO_FRAMES), default=MAX_VIDEO_FRAMES,
+                   metavar="K", help="when no LED image holds a whole frame, read it over at most K consecutive "
+                   f"video frames (default {MAX_VIDEO_FRAMES}, the most; 1: one image only)")
     g = p.add_argument_group("accuracy")
     g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
                    help="positioning method the error map simulates (default perspective; paper: the paper's "
@@ -131,7 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, camera, not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
-                                         args.driver_max_hz, args.install_tolerance, args.receiver))
+                                         args.driver_max_hz, args.install_tolerance, receiver=args.receiver,
+                                         video_fps=args.video_fps, max_video_frames=args.max_video_frames))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
@@ -234,6 +244,12 @@ def _print_summary(s: dict) -> None:
         print(f"  frame    {m['line_code']}, {m['frame_chips']} chips at {m['chip_rate_hz'] / 1e3:g} kHz "
               f"({m['frame_period_s'] * 1e3:.2f} ms); {m['frames_in_smallest_image']:.1f} frames in the smallest LED "
               f"image ({m['smallest_image_rows']:.0f} rows)")
+        if "video_frames" in m:
+            print(f"           multi-frame: no LED image holds a whole frame, so the receiver reads it over "
+                  f"{m['video_frames']} consecutive video frames at {m['video_fps']:g} fps (each shows "
+                  f"{m['window_chips']:.1f} chips, advancing {m['frame_offset_chips']:.1f}); hold the phone still")
+        else:
+            print("           single-frame: one LED image holds a whole frame")
     a = s["accuracy"]
     if a and a["located"]:
         print(f"  accuracy {a['method']} method: median {length_text(a['median_m'])}, 90 % {length_text(a['p90_m'])}, "

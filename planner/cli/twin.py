@@ -172,6 +172,9 @@ def main(argv: list[str] | None = None) -> int:
         return _single(plan, args, sensor)
     results = run_batch(plan, args, sensor)
     s = summary(results)
+    mod = plan.modulation
+    if mod is not None and mod.video_frames > 1:  # a multi-frame plan: each pose was read over video frames
+        s = {**s, "video_frames": mod.video_frames, "video_fps": mod.video_fps}
     failures = [{"pose": k, "stage": r.stage, "detail": r.detail, "where": _pose_text(r)}
                 for k, r in enumerate(results) if not r.ok]
     if args.json:
@@ -186,7 +189,9 @@ def _print_batch(args, s: dict, failures: list[dict]) -> None:
 
     tol = length_text(args.max_error)
     print(f"vlp-twin: {args.plan}: {s['poses']} covered poses (seed {args.seed}); exposure {args.exposure_us:g} us, "
-          f"blur {args.blur_px:g} px, read noise {args.read_noise_dn:g} DN")
+          f"blur {args.blur_px:g} px, read noise {args.read_noise_dn:g} DN"
+          + (f"; IDs read over {s['video_frames']} video frames at {s['video_fps']:g} fps" if "video_frames" in s
+             else ""))
     print(f"  blobs    {s['blobs_found']} of {s['leds_in_view']} LEDs in view found ({100 * s['blob_rate']:.1f} %)")
     print(f"  ids      {s['ids_read']} of {s['blobs_found']} read right ({100 * s['id_rate']:.1f} %), "
           f"{s['ids_misread']} misread")

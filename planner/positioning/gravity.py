@@ -129,8 +129,11 @@ def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
         for b in np.flatnonzero(site.ids == snap.ids[second]):
             if a == b:
                 continue
-            try:
-                position, rotation = two_point_pose(site.xyz[[a, b]], rays[[first, second]], snap.gravity)
+            try:  # the closed form, refined on the two (their images' sizes check the spacing)
+                start = two_point_pose(site.xyz[[a, b]], rays[[first, second]], snap.gravity)
+                position, rotation, _ = refine_gravity(*start, site.xyz[[a, b]], site.radii[[a, b]],
+                                                       [snap.ellipses[first], snap.ellipses[second]], snap.gravity,
+                                                       snap.gravity_sigma_rad, cam)
             except PositioningError:
                 continue
             lum = _complete(site, snap, [first, second], (a, b), position, rotation)

@@ -157,7 +157,10 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
     if mod:
         rows.append(("modulation", f"{mod.line_code}, {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
                                    f"per frame ({1e3 * mod.frame_period_s:.3f} ms), "
-                                   f"{mod.frames_in_smallest_image:.1f} frames in the smallest LED image"))
+                                   f"{mod.frames_in_smallest_image:.1f} frames in the smallest LED image"
+                                   + (f"; read over {mod.video_frames} consecutive video frames at "
+                                      f"{mod.video_fps:g} fps (multi-frame: hold the phone still)"
+                                      if mod.video_frames > 1 else "")))
     done = sum(s.status == "verified" for s in stops)
     failed = sum(s.status == "failed" for s in stops)
     rows.append(("flashing", f"{done} of {len(stops)} drivers verified" + (f", {failed} failed" if failed else "")))

@@ -98,17 +98,23 @@ def _coverage(u: np.ndarray, v: np.ndarray, centre: np.ndarray, q: np.ndarray) -
 
 def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate_hz: float, camera: Camera,
                  position: np.ndarray, rotation: np.ndarray, sensor: Sensor = Sensor(),
-                 rng: np.random.Generator | None = None) -> Frame:
+                 rng: np.random.Generator | None = None, phase_chips: np.ndarray | None = None,
+                 gain: np.ndarray | None = None) -> Frame:
     """The frame the camera at ``position`` [m] with camera-to-site ``rotation`` captures.
 
     ``chips`` is every luminaire's frame ('0'/'1' per chip), ``chip_rate_hz`` the site's
     chip rate; ``rng`` draws the phases, brightness factors and noise (seeded for tests).
+    ``phase_chips`` (each frame's phase at row 0's exposure start) and ``gain`` (each LED's
+    brightness factor), when given, are used instead of drawn: consecutive video frames.
     """
     rng = rng or np.random.default_rng()
     height, width = camera.height_px, camera.width_px
     n = len(xyz)
-    phase = rng.uniform(0.0, [len(c) for c in chips]) if n else np.zeros(0)
-    gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
+    if phase_chips is None:
+        phase_chips = rng.uniform(0.0, [len(c) for c in chips]) if n else np.zeros(0)
+    phase = phase_chips
+    if gain is None:
+        gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
     img: np.ndarray = np.full((height, width), sensor.dark_dn, np.float32)  # float32 (cv2's blur keeps it)
     in_front = project_discs_at(position[None], rotation[None], xyz[None], radii[None], camera)["in_front"][0]
     centres, shapes, ok = centre_and_shape(disc_dual_conic(position, rotation, xyz, radii, camera))

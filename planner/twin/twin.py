@@ -29,6 +29,7 @@ from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
 from planner.twin.receiver import Blob, FrameFormat, decode_frame, read_blobs, snapshot
 from planner.twin.render import Frame, Sensor, render_frame
+from planner.twin.video import VideoFormat, run_video_pose
 
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
@@ -51,6 +52,7 @@ class Twin:
     outline: list | None = None
     receiver: str = "three"  # or "gravity": two-LED windows, and the accelerometer's vertical
     accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)
+    video: VideoFormat | None = None  # frames read over several video frames (planner.twin.video)
 
     @classmethod
     def from_plan(cls, plan: PlanFile, sensor: Sensor = Sensor(),
@@ -60,7 +62,8 @@ class Twin:
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
         return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), plan.camera_model(), sensor, plan.outline,
-                   receiver=plan.receiver_mode, accelerometer_sigma_rad=math.radians(accelerometer_sigma_deg))
+                   receiver=plan.receiver_mode, accelerometer_sigma_rad=math.radians(accelerometer_sigma_deg),
+                   video=VideoFormat.from_plan(plan))
 
     @property
     def window_leds(self) -> int:
@@ -172,7 +175,9 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
 
 def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, rng: np.random.Generator,
              tolerance_m: float = TOLERANCE_M) -> tuple[PoseResult, Frame]:
-    """Render the pose's frame, decode it, locate, and grade the result."""
+    """Render the pose's frame (a multi-frame plan's video frames), decode it, locate, and grade the result."""
+    if twin.video is not None:
+        return run_video_pose(twin, twin.video, position, rotation, angles_deg, rng, tolerance_m)
     frame = render_frame(twin.site.xyz, twin.site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera,
                          position, rotation, twin.sensor, rng)
     blobs = decode_frame(frame.image, twin.camera, twin.modulation, blur_px=twin.sensor.blur_px,
