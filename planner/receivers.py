@@ -116,3 +116,20 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
                   for k, (a, v) in made.items()}
     assignment, verification = made[chosen]
     return assignment, verification, considered
+
+
+def verify_gravity(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
+                   seed: int, tolerance_m: float, install_tolerance_m: float) -> Verification:
+    """A gravity plan verified anew (``vlp-verify``): sampled two-LED windows and the pair set, proved where
+    the pair proof completes (made from the luminaires and the camera, never read from the plan)."""
+    from planner.verify.windows import sample_poses, working_area
+
+    area = working_area(xyz[:, :2], outline)
+    poses = sample_poses(area, camera, per_m2, seed)
+    pp = find_pairs(poses, xyz, radii, camera)
+    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, area)
+    sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
+    v = classify_pairs(poses.position, pp, xyz, ids, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+    return replace(v, window_set=check_pair_set(xyz, ids, proof.pairs, sampled, tolerance_m=tolerance_m,
+                                                install_tolerance_m=install_tolerance_m, reason=proof.reason,
+                                                envelope=proof.envelope))

@@ -122,3 +122,20 @@ def test_site_report_shows_coverage_per_receiver_mode(gravity_plan):
     html = (plan.parent / "site-report.html").read_text()
     share = f"two LEDs plus gravity {100 * summary['receiver']['coverage']['gravity']:.1f} %"
     assert "receiver" in html and share in html
+
+
+def test_vlp_verify_judges_a_gravity_plan_on_two_led_windows(gravity_plan, tmp_path):
+    import yaml
+
+    plan, _ = gravity_plan
+    done = subprocess.run(["vlp-verify", str(plan), "--json"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    ws = json.loads(done.stdout)["window_set"]
+    assert ws["pairs"] > 0 and ws["proved"]
+    doc = yaml.safe_load(plan.read_text())
+    doc["luminaires"][1]["id"] = doc["luminaires"][0]["id"]  # neighbours 1.2 m apart now share a label
+    edited = tmp_path / "plan.yaml"
+    edited.write_text(yaml.safe_dump(doc, sort_keys=False))
+    bad = subprocess.run(["vlp-verify", str(edited), "--json"], capture_output=True, text=True)
+    assert bad.returncode == 3
+    assert json.loads(bad.stdout)["window_set"]["read_alike"] > 0
