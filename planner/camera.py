@@ -110,6 +110,28 @@ class Camera:
         xy = self.normalized(uv_px)
         return np.stack([self.fx_px * xy[..., 0] + self.cx_px, self.fy_px * xy[..., 1] + self.cy_px], axis=-1)
 
+    def distorted_pixels(self, ideal_px: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`ideal_pixels`: where the lens puts ideal-pinhole pixels (..., 2) [px]."""
+        uv = np.asarray(ideal_px, float)
+        xy = np.stack([(uv[..., 0] - self.cx_px) / self.fx_px, (uv[..., 1] - self.cy_px) / self.fy_px], axis=-1)
+        if self.distorted:
+            xy = lens.distort_normalized(self.lens, self.distortion, xy)
+        return np.stack([self.fx_px * xy[..., 0] + self.cx_px, self.fy_px * xy[..., 1] + self.cy_px], axis=-1)
+
+    @cached_property
+    def view_px(self) -> tuple[float, float, float, float]:
+        """The *view* ``(u_lo, u_hi, v_lo, v_hi)`` in ideal pixels [px]: an LED counts as wholly seen when its
+        ideal (pinhole) image lies inside this rectangle. Without distortion it is the sensor itself; with
+        distortion, the rectangle about the principal point whose distorted image lies on the sensor
+        (:func:`planner.lens.view_rectangle`; docs/verification.md, "Lens distortion")."""
+        if not self.distorted:
+            return 0.0, float(self.width_px), 0.0, float(self.height_px)
+        sensor = ((0.0 - self.cx_px) / self.fx_px, (self.width_px - self.cx_px) / self.fx_px,
+                  (0.0 - self.cy_px) / self.fy_px, (self.height_px - self.cy_px) / self.fy_px)
+        xl, xr, yt, yb = lens.view_rectangle(self.lens, self.distortion, sensor)
+        return (self.cx_px + self.fx_px * xl, self.cx_px + self.fx_px * xr,
+                self.cy_px + self.fy_px * yt, self.cy_px + self.fy_px * yb)
+
     def rays(self, uv_px: np.ndarray) -> np.ndarray:
         """Unit camera-frame rays (..., 3) through pixels (..., 2) [px], distortion removed."""
         xy = self.normalized(uv_px)
@@ -223,6 +245,11 @@ def project_discs(poses: Poses, centres: np.ndarray, radii: np.ndarray, camera: 
     Returns arrays of shape (P, K): ``u``, ``v`` (projected disc centre [px]),
     ``in_front`` (every rim point in front of the camera), ``inside`` (the whole
     disc image lies inside the image), and ``depth`` (centre depth along the axis [m]).
+
+    With lens distortion ``u, v`` and the conic are those of the ideal pinhole of the same
+    intrinsics (``camera.ideal_pixels`` space, where the distance from the principal point
+    ranks LEDs by ray angle), and ``inside`` means inside ``camera.view_px``, the rectangle
+    of ideal pixels that the lens maps onto the sensor (docs/verification.md).
     """
     return project_discs_at(poses.position, poses.rotation, centres, radii, camera)
 
@@ -256,12 +283,42 @@ def disc_conics(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray,
     return r2[..., None, None] * base - h3[..., :, None] * h3[..., None, :]
 
 
+RIM_SAMPLES = 32
+"""Rim points per disc from which a distorted camera's image heights are bounded below."""
+
+
 def disc_image_rows(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
                     camera: Camera) -> np.ndarray:
-    """Height [rows] of the exact images of horizontal discs, shapes as in :func:`disc_conics`."""
+    """Height [rows] of the exact images of horizontal discs, shapes as in :func:`disc_conics`.
+
+    With lens distortion the image is no conic: the height is the spread of :data:`RIM_SAMPLES` rim
+    points projected through the lens, a lower bound (the rim between samples can only reach further),
+    short of the true height by at most ``1 - cos(pi / RIM_SAMPLES)`` (0.5 %) of it.
+    """
+    if camera.distorted:
+        return _distorted_rows(np.asarray(position, float), np.asarray(rotation, float),
+                               np.asarray(centres, float), np.asarray(radii, float), camera)
     t = _disc_terms(position, rotation, centres, radii, camera)
     c11, c12, c22 = _conic_entry(t, 1, 1), _conic_entry(t, 1, 2), _conic_entry(t, 2, 2)
     return 2 * np.sqrt(np.maximum(c12**2 - c11 * c22, 0.0)) / np.abs(c22)
+
+
+def _distorted_rows(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                    camera: Camera) -> np.ndarray:
+    """:func:`disc_image_rows` through the lens: rows spanned by projected rim samples (a lower bound)."""
+    lead = centres.shape[:-1]
+    pos = np.broadcast_to(position[..., None, :], lead + (3,)).reshape(-1, 3)
+    rot = np.broadcast_to(rotation[..., None, :, :], lead + (3, 3)).reshape(-1, 3, 3)
+    c, r = centres.reshape(-1, 3), np.broadcast_to(radii, lead).reshape(-1)
+    phi = 2 * np.pi * np.arange(RIM_SAMPLES) / RIM_SAMPLES
+    ring = np.column_stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)])
+    out = np.empty(len(c))
+    for s in range(0, len(c), 20_000):  # (chunk, RIM_SAMPLES, 3) temporaries
+        part = slice(s, s + 20_000)
+        rim = c[part, None, :] + r[part, None, None] * ring - pos[part, None, :]
+        cam = np.einsum("nji,nkj->nki", rot[part], rim)  # site -> camera: R^T (x - p)
+        out[part] = np.ptp(camera.project(cam)[..., 1], axis=1)
+    return out.reshape(lead)
 
 
 def project_discs_at(position: np.ndarray, rotation: np.ndarray, centres: np.ndarray, radii: np.ndarray,
@@ -278,11 +335,12 @@ def project_discs_at(position: np.ndarray, rotation: np.ndarray, centres: np.nda
         u = h3[..., 0] / h3[..., 2]
         v = h3[..., 1] / h3[..., 2]
         inside = in_front.copy()
-        for axis, size in ((0, camera.width_px), (1, camera.height_px)):
+        u_lo, u_hi, v_lo, v_hi = camera.view_px
+        for axis, low, size in ((0, u_lo, u_hi), (1, v_lo, v_hi)):
             c00, c02 = _conic_entry(terms, axis, axis), _conic_entry(terms, axis, 2)
             disc = np.sqrt(np.maximum(c02**2 - c00 * c22, 0.0))
             lo, hi = (c02 - disc) / c22, (c02 + disc) / c22
-            inside &= (np.minimum(lo, hi) >= 0) & (np.maximum(lo, hi) <= size)
+            inside &= (np.minimum(lo, hi) >= low) & (np.maximum(lo, hi) <= size)
     return {"u": u, "v": v, "in_front": in_front, "inside": inside, "depth": depth}
 
 

@@ -49,6 +49,36 @@ INSTALL_TOLERANCE_M = 0.03
 NOISE_PX = 0.5
 """Default standard deviation of an edge point's position [px] (before rounding)."""
 
+# The error budget's terms besides edge noise (planner.positioning.error_terms; docs/positioning.md#error-budget).
+INSTALL_ERROR_M = 0.02
+"""Default radius [m] of the horizontal disc an installed luminaire lies in, uniformly, around its drawn
+position (assumed: a ceiling grid set out from the drawing; within the windows' INSTALL_TOLERANCE_M)."""
+
+FOCAL_ERROR_PCT = 0.5
+"""Default standard deviation of the calibrated focal length's relative error [%] (the bound vlp-calibrate
+meets on rendered boards, issue 18)."""
+
+PRINCIPAL_ERROR_PX = 5.0
+"""Default standard deviation of the calibrated principal point's error per axis [px] (assumed, for a
+4000 px image)."""
+
+DISTORTION_RESIDUAL_PX = 0.3
+"""Default RMS over the image [px] of the lens distortion calibration leaves uncorrected (the
+reprojection-error bound of vlp-calibrate, issue 18)."""
+
+PHONE_SPEED_M_S = 0.5
+"""Default speed of the phone while an image is read out [m/s] (assumed: walking slowly while looking at it;
+people walk at 1.2-1.4 m/s)."""
+
+PHONE_TURN_DEG_S = 5.0
+"""Default angular rate of the hand-held phone while an image is read out [deg/s] (assumed: held steady)."""
+
+MAX_PHONE_SPEED_M_S = 10.0
+"""Fastest phone speed accepted [m/s]: beyond a sprint, a unit error rather than a user."""
+
+MAX_PHONE_TURN_DEG_S = 1000.0
+"""Fastest phone turn accepted [deg/s]."""
+
 MAX_RESIDUAL_PX = 5.0
 """Default largest RMS ellipse residual [px] of a pose that explains an image."""
 

@@ -12,6 +12,9 @@ to 1e-9 px (tests/test_lens.py).
 from __future__ import annotations
 
 import numpy as np
+from numpy.polynomial import Polynomial
+
+from planner.errors import InputError
 
 LENS_MODELS = ("pinhole", "fisheye")
 COEFFICIENTS = {"pinhole": ("k1", "k2", "p1", "p2", "k3"), "fisheye": ("k1", "k2", "k3", "k4")}
@@ -89,5 +92,77 @@ def undistort_normalized(model: str, coefficients: tuple[float, ...], xy_d: np.n
         dx = (jy[..., 1] * f[..., 0] - jy[..., 0] * f[..., 1]) / det
         dy = (-jx[..., 1] * f[..., 0] + jx[..., 0] * f[..., 1]) / det
         xy = xy - np.stack([dx, dy], axis=-1)
+        if not np.any(np.abs(f) > 1e-15):  # converged everywhere (NaN, a fold, stops too)
+            break
     residual = np.hypot(*np.moveaxis(distort_normalized(model, coefficients, xy) - xy_d, -1, 0))
     return np.where((residual < 1e-9)[..., None], xy, np.nan)
+
+
+def radial_polynomials(coefficients: tuple[float, ...]) -> tuple[Polynomial, Polynomial]:
+    """The pinhole model's radial factor ``L(s) = 1 + k1 s + k2 s^2 + k3 s^3`` in ``s = r^2``, and the
+    derivative ``dρ/dr = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3`` of the distorted radius ``ρ = r L(r^2)``."""
+    k1, k2, _, _, k3 = padded("pinhole", coefficients)
+    return Polynomial([1.0, k1, k2, k3]), Polynomial([1.0, 3 * k1, 5 * k2, 7 * k3])
+
+
+def poly_range(p: Polynomial, s0: float, s1: float) -> tuple[float, float]:
+    """Exact minimum and maximum of polynomial ``p`` over ``[s0, s1]``: at the ends or a critical point.
+    Every root's real part (clipped to the interval) is tried, so a nearly double root is never lost."""
+    roots = np.asarray(p.deriv().roots(), dtype=complex)
+    points = [s0, s1, *np.clip(roots.real, s0, s1).tolist()]
+    values = p(np.array(points))
+    return float(values.min()), float(values.max())
+
+
+VIEW_SLACK = 1e-7
+"""Relative shrink of the view rectangle below the lens's inverse (whose residual is under 1e-9)."""
+
+
+def view_rectangle(model: str, coefficients: tuple[float, ...],
+                   sensor: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    """The *view*: an axis-aligned rectangle ``(x_lo, x_hi, y_lo, y_hi)`` of ideal normalised coordinates
+    about the axis whose distorted image lies on the sensor ``sensor`` (distorted normalised bounds).
+
+    Its sides start at the nearer of the undistorted edge midpoint and the undistorted corners (barrel
+    lenses: the midpoints; pincushion: the corners) and shrink until the sampled check passes: 400
+    distorted points per side on the sensor and a positive Jacobian on a 41 x 41 grid. The proof checks
+    the result exactly (:func:`planner.verify.envelope.envelope`). :class:`InputError` if the lens folds
+    before any usable rectangle.
+    """
+    lo_x, hi_x, lo_y, hi_y = sensor
+    names = " ".join(f"{n}={v:g}" for n, v in zip(COEFFICIENTS[model], padded(model, coefficients)))
+    if not (lo_x < 0 < hi_x and lo_y < 0 < hi_y):
+        raise InputError("the camera's principal point lies outside its image: check cx_px and cy_px")
+    mids = undistort_normalized(model, coefficients, np.array([[lo_x, 0], [hi_x, 0], [0, lo_y], [0, hi_y]]))
+    corners = undistort_normalized(model, coefficients, np.array([[lo_x, lo_y], [hi_x, lo_y], [lo_x, hi_y], [hi_x, hi_y]]))
+    if np.isnan(mids).any():
+        raise InputError(f"the {model} lens's distortion ({names}) folds inside the image, or takes in rays 90 deg "
+                         "or more from its axis: check the coefficients and the focal length, or calibrate again")
+    with np.errstate(invalid="ignore"):
+        view = np.array([np.nanmax([mids[0, 0], corners[0, 0], corners[2, 0]]),
+                         np.nanmin([mids[1, 0], corners[1, 0], corners[3, 0]]),
+                         np.nanmax([mids[2, 1], corners[0, 1], corners[1, 1]]),
+                         np.nanmin([mids[3, 1], corners[2, 1], corners[3, 1]])]) * (1 - VIEW_SLACK)
+    for _ in range(700):  # 0.999 ** 700 ~ 0.5
+        if _maps_onto(model, coefficients, view, sensor):
+            return float(view[0]), float(view[1]), float(view[2]), float(view[3])
+        view *= 0.999
+    raise InputError(f"the {model} lens's distortion ({names}) maps no rectangle about the principal point onto "
+                     "the image without folding: check the coefficients")
+
+
+def _maps_onto(model: str, coefficients: tuple[float, ...], view: np.ndarray, sensor) -> bool:
+    """Sampled check of :func:`view_rectangle`: the view's border distorts onto the sensor, the map does not fold."""
+    x0, x1, y0, y1 = view
+    t = np.linspace(0.0, 1.0, 400)
+    border = np.concatenate([np.column_stack([x0 + (x1 - x0) * t, np.full_like(t, y)]) for y in (y0, y1)]
+                            + [np.column_stack([np.full_like(t, x), y0 + (y1 - y0) * t]) for x in (x0, x1)])
+    d = distort_normalized(model, coefficients, border)
+    if not (np.all(d[:, 0] >= sensor[0]) and np.all(d[:, 0] <= sensor[1])
+            and np.all(d[:, 1] >= sensor[2]) and np.all(d[:, 1] <= sensor[3])):
+        return False
+    g = np.stack(np.meshgrid(np.linspace(x0, x1, 41), np.linspace(y0, y1, 41)), axis=-1).reshape(-1, 2)
+    step = 1e-6
+    jx = (distort_normalized(model, coefficients, g + [step, 0]) - distort_normalized(model, coefficients, g)) / step
+    jy = (distort_normalized(model, coefficients, g + [0, step]) - distort_normalized(model, coefficients, g)) / step
+    return bool(np.all(jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0] > 0))

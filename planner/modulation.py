@@ -143,41 +143,44 @@ class Modulation:
 
 def choose_video_timing(frame_len: int, max_run: int, rows: float, row_time_s: float, *,
                         driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ,
-                        video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES) -> Timing:
-    """The chip rate for reading a frame over the fewest video frames (2 .. ``max_frames``), or
-    :class:`PlanningError` saying what would fit."""
+                        video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES,
+                        clock_hz: float | None = None) -> Timing:
+    """The chip rate for reading a frame over the fewest video frames (2 .. ``max_frames``), one the drivers'
+    timer clock ``clock_hz`` plays exactly when given, or :class:`PlanningError` saying what would fit."""
     flicker = 2 * max_run * flicker_hz
     resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
     high = min(resolution, driver_max_hz)
-    fit = fit_video(frame_len, rows, row_time_s, flicker, high, video_fps, max_frames)
+    fit = fit_video(frame_len, rows, row_time_s, flicker, high, video_fps, max_frames, clock_hz)
     if fit is None:
-        raise PlanningError(_video_misfit(frame_len, rows, row_time_s, flicker, driver_max_hz, video_fps, max_frames))
+        raise PlanningError(_video_misfit(frame_len, rows, row_time_s, flicker, driver_max_hz, video_fps, max_frames,
+                                          clock_hz))
     return Timing(fit.chip_rate_hz, frame_len, max_run, rows, row_time_s, 0, flicker, frame_len / (rows * row_time_s),
                   resolution, driver_max_hz, fit)
 
 
 def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: float, driver_max_hz: float,
-                  video_fps: float, max_frames: int) -> str:
+                  video_fps: float, max_frames: int, clock_hz: float | None) -> str:
     """Why ``max_frames`` video frames do not cover the frame, and the smallest image or row time that would."""
     def high(row_s: float) -> float:
         return min(1.0 / (ROWS_PER_CHIP * row_s), driver_max_hz)
 
     what = []
-    need = rows_needed(frame_len, row_time_s, flicker_hz, high(row_time_s), video_fps, max_frames)
+    need = rows_needed(frame_len, row_time_s, flicker_hz, high(row_time_s), video_fps, max_frames, clock_hz)
     if need is not None:
         what.append(f"LED images of at least {need:.1f} rows (larger or closer LEDs, or a narrower lens)")
     step_us = max(0.1, round(row_time_s * 1e6 / 100, 1))  # up to three times the row time, 200 tries at most
     slower = next((t for t in np.round(row_time_s * 1e6 + np.arange(1, 201) * step_us, 1) * 1e-6
-                   if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames)), None)
+                   if fit_video(frame_len, rows, float(t), flicker_hz, high(float(t)), video_fps, max_frames,
+                                clock_hz)), None)
     if slower is not None:  # coverage is not monotonic in the row time: name one that fits
         what.append(f"a camera with a slower rolling shutter, e.g. a row time of {slower * 1e6:.1f} us")
     resolution = 1.0 / (ROWS_PER_CHIP * row_time_s)
     faster = _fastest_needed(frame_len, rows, row_time_s, flicker_hz, driver_max_hz, resolution, video_fps,
-                             max_frames)
+                             max_frames, clock_hz)
     if faster is not None:
         what.append(f"drivers that switch at least {faster:,.0f} Hz (--driver-max-hz {faster:.0f})")
     if max_frames < MAX_VIDEO_FRAMES and fit_video(frame_len, rows, row_time_s, flicker_hz, high(row_time_s),
-                                                   video_fps, MAX_VIDEO_FRAMES):
+                                                   video_fps, MAX_VIDEO_FRAMES, clock_hz):
         what.insert(0, f"--max-video-frames {MAX_VIDEO_FRAMES}")
     return (f"nor can it be read over up to {max_frames} video frames at {video_fps:g} fps (the windows of that many "
             f"LED images of {rows:.1f} rows do not cover it); "
@@ -185,12 +188,13 @@ def _video_misfit(frame_len: int, rows: float, row_time_s: float, flicker_hz: fl
 
 
 def _fastest_needed(frame_len: int, rows: float, row_time_s: float, flicker_hz: float, driver_max_hz: float,
-                    resolution_hz: float, video_fps: float, max_frames: int) -> float | None:
+                    resolution_hz: float, video_fps: float, max_frames: int,
+                    clock_hz: float | None) -> float | None:
     """The slowest driver (whole kHz) above ``driver_max_hz`` at which the frames would fit, or None (bisection: a
     faster driver only adds rates)."""
     def fits(khz: int) -> bool:
         return fit_video(frame_len, rows, row_time_s, flicker_hz, min(khz * 1e3, resolution_hz), video_fps,
-                         max_frames) is not None
+                         max_frames, clock_hz) is not None
 
     lo, hi = math.floor(min(driver_max_hz, MAX_RATE_HZ) / 1e3), math.floor(min(resolution_hz, MAX_RATE_HZ) / 1e3)
     if hi <= lo or not fits(hi):
@@ -203,7 +207,7 @@ def _fastest_needed(frame_len: int, rows: float, row_time_s: float, flicker_hz: 
 
 def modulate(words: np.ndarray, word_bits: int, code: LineCode, rows: float, camera: Camera, *,
              driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ, video_fps: float = VIDEO_FPS,
-             max_video_frames: int = MAX_VIDEO_FRAMES) -> Modulation:
+             max_video_frames: int = MAX_VIDEO_FRAMES, mcu_clock_hz: float | None = None) -> Modulation:
     """Frames for the words the luminaires send (``id - 1`` or codewords, ``word_bits`` bits): read from one
     LED image when a frame fits in it, else over the fewest video frames up to ``max_video_frames``."""
     frames = [frame_chips(int(w), word_bits, code) for w in words]
@@ -216,7 +220,7 @@ def modulate(words: np.ndarray, word_bits: int, code: LineCode, rows: float, cam
         try:
             timing = choose_video_timing(len(frames[0]), code.max_run, rows, camera.row_time_s,
                                          driver_max_hz=driver_max_hz, flicker_hz=flicker_hz, video_fps=video_fps,
-                                         max_frames=max_video_frames)
+                                         max_frames=max_video_frames, clock_hz=mcu_clock_hz)
         except PlanningError as why:
             raise PlanningError(f"{exc}; {why}") from None
     return Modulation(code, timing, frames)

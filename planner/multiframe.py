@@ -78,16 +78,32 @@ def coverage_margin(rate_hz: np.ndarray | float, frame_len: int, frames: int, ro
     return window_chips(rows, row_time_s, rate_hz) - 1.0 - gap
 
 
-def fit_video(frame_len: int, rows: float, row_time_s: float, low_hz: float, high_hz: float,
-              video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES) -> VideoFit | None:
-    """The fewest video frames (2 .. ``max_frames``) and the whole-hertz rate in ``[low_hz, high_hz]``
-    (of at most :data:`MAX_RATES` spread evenly) that covers the frame with the widest margin; None if none does."""
+def candidate_rates(low_hz: float, high_hz: float, clock_hz: float | None = None) -> np.ndarray:
+    """Rates to try in ``[low_hz, high_hz]``: whole hertz, or with a driver clock the rates ``clock_hz / n`` its
+    timer plays exactly (at most :data:`MAX_RATES`, spread evenly)."""
     high_hz = min(high_hz, MAX_RATE_HZ)
     if not math.ceil(low_hz) <= high_hz:  # also NaN
-        return None
+        return np.zeros(0)
+    if clock_hz is not None:
+        first, last = float(math.ceil(clock_hz / high_hz)), float(math.floor(clock_hz / max(low_hz, 1e-9)))
+        ticks = (np.unique(np.round(np.linspace(first, last, MAX_RATES))) if last - first >= MAX_RATES
+                 else np.arange(first, last + 1.0))
+        return clock_hz / ticks[ticks >= 2][::-1]
     first, last = float(math.ceil(low_hz)), float(math.floor(high_hz))
-    rates = (np.unique(np.round(np.linspace(first, last, MAX_RATES))) if last - first >= MAX_RATES
-             else np.arange(first, last + 1.0))
+    return (np.unique(np.round(np.linspace(first, last, MAX_RATES))) if last - first >= MAX_RATES
+            else np.arange(first, last + 1.0))
+
+
+def fit_video(frame_len: int, rows: float, row_time_s: float, low_hz: float, high_hz: float,
+              video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES,
+              clock_hz: float | None = None) -> VideoFit | None:
+    """The fewest video frames (2 .. ``max_frames``) and the rate in ``[low_hz, high_hz]``
+    (:func:`candidate_rates`) that covers the frame with the widest margin; None if none does.
+
+    With the drivers' timer clock ``clock_hz`` the rate is one they play exactly: an error of
+    ``d`` in the rate moves each video frame's window by ``T_v rate d`` chips (0.07 chips at
+    100 ppm, 20 kHz and 30 fps), which the coverage does not allow for."""
+    rates = candidate_rates(low_hz, high_hz, clock_hz)
     for frames in range(2, max_frames + 1):
         margin = coverage_margin(rates, frame_len, frames, rows, row_time_s, video_fps)
         if len(rates) and margin.max() >= OVERLAP_CHIPS:
@@ -112,11 +128,11 @@ def fps_tolerance(rate_hz: float, frame_len: int, frames: int, rows: float, row_
 
 
 def rows_needed(frame_len: int, row_time_s: float, low_hz: float, high_hz: float, video_fps: float = VIDEO_FPS,
-                max_frames: int = MAX_VIDEO_FRAMES) -> float | None:
+                max_frames: int = MAX_VIDEO_FRAMES, clock_hz: float | None = None) -> float | None:
     """Fewest rows of the smallest LED image (to 0.1 row) that ``max_frames`` frames cover; None if even 4,000
     rows do not (coverage only grows with the rows, so bisection finds the edge)."""
     def fits(rows: float) -> bool:
-        return fit_video(frame_len, rows, row_time_s, low_hz, high_hz, video_fps, max_frames) is not None
+        return fit_video(frame_len, rows, row_time_s, low_hz, high_hz, video_fps, max_frames, clock_hz) is not None
 
     lo, hi = 2 * EDGE_ROWS, 4000.0
     if not fits(hi):

@@ -20,16 +20,23 @@ from planner.camera import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
 from planner.codes.schemes import assign_unique, assign_window
-from planner.defaults import ACCELEROMETER_SIGMA_DEG, INSTALL_TOLERANCE_M, RECEIVERS, SCHEMES
+from planner.defaults import (
+    ACCELEROMETER_SIGMA_DEG,
+    INSTALL_TOLERANCE_M,
+    MAX_VIDEO_FRAMES,
+    RECEIVERS,
+    SCHEMES,
+    VIDEO_FPS,
+)
 from planner.errors import InputError, UsageError
 from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
-from planner.multiframe import MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
+from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
@@ -70,10 +77,12 @@ class PlanOptions:
     line_code: str = "manchester"
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
+    error_terms: ErrorTerms = DEFAULT_TERMS
     receiver: str = "three"
     accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG
     video_fps: float = VIDEO_FPS
     max_video_frames: int = MAX_VIDEO_FRAMES
+    mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -255,11 +264,13 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     else:
         rows = smallest_window_image_rows(xyz, radii, cam, sample)
     modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
-                          video_fps=options.video_fps, max_video_frames=options.max_video_frames)
+                          video_fps=options.video_fps, max_video_frames=options.max_video_frames,
+                          mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
-                                 per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample)
+                                 per_m2=options.error_poses_per_m2, seed=options.seed, terms=options.error_terms,
+                                 sample=sample)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, receiver)
 
 

@@ -165,6 +165,12 @@ class Verification(_Section):
     window_set: dict[str, Any] | None = None
 
 
+class BudgetRow(_Section):
+    located: Count
+    median_m: Annotated[Finite, Field(ge=0)] | None = None
+    p90_m: Annotated[Finite, Field(ge=0)] | None = None
+
+
 class Accuracy(_Section):
     method: Text
     poses: Count
@@ -172,6 +178,10 @@ class Accuracy(_Section):
     median_m: Annotated[Finite, Field(ge=0)] | None = None
     p90_m: Annotated[Finite, Field(ge=0)] | None = None
     max_m: Annotated[Finite, Field(ge=0)] | None = None
+    terms: dict[str, Annotated[Finite, Field(ge=0)]] | None = None  # None: a plan from before the error budget
+    includes: list[Text] = ["edge"]
+    budget: dict[str, BudgetRow] = {}
+    dominant: Text | None = None
 
 
 class PlanFile(_Section):

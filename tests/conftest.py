@@ -22,7 +22,7 @@ def pytest_collection_modifyitems(items):
             item.add_marker(pytest.mark.slow)
 
 
-def _shared_plan(tmp_path_factory, name: str, leds: int | None) -> Path:
+def _shared_plan(tmp_path_factory, name: str, leds: int | None, *extra: str, stem: str = "") -> Path:
     """``layouts/<name>`` planned with default options (firmware and report, no maps, no error map), once
     for the whole run: the first xdist worker to ask plans it, the others wait on a lock and read it."""
     import fcntl
@@ -33,13 +33,13 @@ def _shared_plan(tmp_path_factory, name: str, leds: int | None) -> Path:
     # Under xdist each worker's basetemp sits in the run's own directory; without xdist the parent
     # is shared by every run on the machine (and every checkout), so the plan would go stale.
     root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    out = root / "shared-plans" / Path(name).stem
+    out = root / "shared-plans" / (stem or Path(name).stem)
     out.parent.mkdir(exist_ok=True)
     with open(root / "shared-plans" / f"{out.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not (out / "plan.yaml").is_file():
             plan_main([str(ROOT / "layouts" / name), *(["--leds", str(leds)] if leds else []), "-o", str(out),
-                       "--no-map", "--json", "--error-poses-per-m2", "0"])
+                       "--no-map", "--json", "--error-poses-per-m2", "0", *extra])
     return out
 
 
@@ -54,6 +54,18 @@ def plan512_dir(tmp_path_factory) -> Path:
 def plan256_dir(tmp_path_factory) -> Path:
     """``grid-256.yaml`` planned once for the whole run, as :func:`plan512_dir`."""
     return _shared_plan(tmp_path_factory, "grid-256.yaml", None)
+
+
+STRONG_WIDE_CAMERA = {"width_px": 4000, "height_px": 3000, "fx_px": 2800.0, "fy_px": 2800.0, "lens": "pinhole",
+                      "distortion": [-0.2, 0.05]}
+"""A camera YAML's fields for a strongly distorting wide lens, stronger than the ``wide`` profile's: 77.3 deg
+horizontal field of view through the lens, barrel k1 = -0.2, k2 = 0.05 (the corner drawn 16 % inwards)."""
+
+
+@pytest.fixture(scope="session")
+def wide_plan_dir(tmp_path_factory) -> Path:
+    """``grid-32.yaml`` planned once for the whole run with ``--camera wide`` (the profile); read it only."""
+    return _shared_plan(tmp_path_factory, "grid-32.yaml", None, "--camera", "wide", stem="grid-32-wide")
 
 
 def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: float = 0.0,

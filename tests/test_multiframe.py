@@ -10,7 +10,7 @@ from planner.camera import Camera
 from planner.errors import InputError, PlanningError
 from planner.frame import line_code
 from planner.modulation import choose_timing, choose_video_timing, modulate
-from planner.multiframe import EDGE_ROWS, OVERLAP_CHIPS, coverage_margin, fit_video, rows_needed
+from planner.multiframe import EDGE_ROWS, OVERLAP_CHIPS, candidate_rates, coverage_margin, fit_video, rows_needed
 
 
 def _read_slots(start: float, window: float, frame_len: int, chip_phase: float) -> set[int]:
@@ -22,14 +22,18 @@ def _read_slots(start: float, window: float, frame_len: int, chip_phase: float) 
 
 @settings(max_examples=60, deadline=None)
 @given(st.floats(15.0, 60.0), st.sampled_from([12, 16, 18, 20, 24]), st.floats(10e-6, 40e-6),
-       st.sampled_from([24.0, 29.97, 30.0, 60.0]), st.floats(0, 1), st.floats(0, 1))
-def test_the_k_windows_cover_every_chip_from_any_start(rows, frame_len, row_time_s, fps, start, chip_phase):
+       st.sampled_from([24.0, 29.97, 30.0, 60.0]), st.floats(0, 1), st.floats(0, 1), st.sampled_from([None, 16e6, 8e6]))
+def test_the_k_windows_cover_every_chip_from_any_start(rows, frame_len, row_time_s, fps, start, chip_phase, clock):
     """Brute force: every slot of the cyclic frame lies wholly inside one of the k windows, whatever the
-    phase the first video frame starts at, with OVERLAP_CHIPS to spare."""
-    fit = fit_video(frame_len, rows, row_time_s, 1200.0, min(20_000.0, 1 / (2 * row_time_s)), fps)
+    phase the first video frame starts at, with OVERLAP_CHIPS to spare; with a driver clock, the rate is
+    one its timer plays exactly."""
+    fit = fit_video(frame_len, rows, row_time_s, 1200.0, min(20_000.0, 1 / (2 * row_time_s)), fps, clock_hz=clock)
     if fit is None:
         return
     assert 2 <= fit.frames <= 4 and 1200 <= fit.chip_rate_hz <= min(20_000, 1 / (2 * row_time_s))
+    if clock is not None:
+        ticks = clock / fit.chip_rate_hz
+        assert abs(ticks - round(ticks)) < 1e-6
     assert fit.margin_chips >= OVERLAP_CHIPS
     window = (rows - 2 * EDGE_ROWS) * row_time_s * fit.chip_rate_hz
     period = fit.chip_rate_hz / fps
@@ -38,8 +42,8 @@ def test_the_k_windows_cover_every_chip_from_any_start(rows, frame_len, row_time
     for j in range(fit.frames):
         seen |= _read_slots(start * frame_len + j * period, shrunk, frame_len, chip_phase)
     assert seen == set(range(frame_len))
-    fewer = coverage_margin(np.arange(1200, int(fit.chip_rate_hz) + 1), frame_len, fit.frames - 1, rows,
-                            row_time_s, fps) if fit.frames > 2 else np.array([-1.0])
+    fewer = coverage_margin(candidate_rates(1200.0, min(20_000.0, 1 / (2 * row_time_s)), clock), frame_len,
+                            fit.frames - 1, rows, row_time_s, fps) if fit.frames > 2 else np.array([-1.0])
     assert fewer.max() < OVERLAP_CHIPS  # the fewest frames: one frame fewer covers at no rate up to it
 
 

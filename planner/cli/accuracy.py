@@ -2,8 +2,10 @@
 
 Prints a table shaped like the paper's Table 3 (mean and 90 % error per tilt) with
 the paper's printed figures beside the simulated paper method and the full-perspective
-method, and with ``--cdf PNG`` draws the CDF plot (the paper's Fig. 8 and 10). Assumptions (LED radius,
-pixel noise, hand jitter) are printed with the table and can be changed by flags.
+method, each with pixel noise only and with every term of the error budget on, then the
+budget (each term alone), and with ``--cdf PNG`` draws the CDF plot (the paper's Fig. 8 and 10;
+all terms on). Assumptions (LED radius, the terms, hand jitter) are printed with the table and can
+be changed by flags.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import sys
 
 from planner._files import write_atomically
 from planner.cli import common as cli
-from planner.defaults import NOISE_PX, PAPER_RADIUS_M, PAPER_TILTS_DEG
+from planner.defaults import PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import UsageError
 
 
@@ -31,12 +33,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trials per test point (default 10, as the paper)")
     p.add_argument("--tilts", default=",".join(map(str, PAPER_TILTS_DEG)), metavar="DEG,...",
                    help="tilts to test [deg] (default 0,20,30,40)")
-    p.add_argument("--noise-px", type=cli.non_negative_float, default=NOISE_PX, metavar="PX",
-                   help=f"edge-point noise before rounding to whole pixels [px] (default {NOISE_PX:g})")
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
     p.add_argument("--seed", type=cli.seed, default=0, help="random seed (default 0)")
     p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (default: no plot)")
+    cli.add_error_budget_flags(p, "the experiment")
     cli.common_flags(p, "print the figures as JSON instead of the table")
     return p
 
@@ -55,36 +56,40 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     tilts = _tilts(args.tilts)
     cdf = cli.output_file("--cdf", args.cdf)
-    from planner.positioning.accuracy import HAND_JITTER_DEG, paper_experiment, plot_cdf, stats_cm, table3_text
+    terms = cli.error_terms(args)
+    from planner.positioning.accuracy import HAND_JITTER_DEG, budget_text, paper_budget, plot_cdf, stats_cm, table3_text
+    from planner.positioning.error_terms import included_text
 
-    results = paper_experiment(tilts, args.trials, args.noise_px, args.radius, args.seed)
+    runs = paper_budget(tilts, args.trials, terms, args.radius, args.seed)
+    pixel = runs.get("edge", runs["exact"])
     if cdf is not None:
-        write_atomically(cdf, lambda tmp: plot_cdf(results, tmp))
+        write_atomically(cdf, lambda tmp: plot_cdf(runs["all"], tmp))
     if args.json:
+        figures = {name: [{"tilt_deg": r.tilt_deg, "unusable_trials": r.unusable,
+                           **{m: dict(zip(("mean_cm", "p90_cm"), (round(v, 4) for v in stats_cm(e))))
+                              for m, e in r.errors.items()}} for r in results]
+                   for name, results in runs.items()}
+        finite = all(math.isfinite(v) for rs in runs.values() for r in rs for e in r.errors.values() for v in stats_cm(e))
         print(json.dumps({
-            "assumptions": {"led_radius_m": args.radius, "noise_px": args.noise_px, "trials": args.trials,
+            "assumptions": {"led_radius_m": args.radius, "trials": args.trials, "terms": terms.to_dict(),
+                            "includes": terms.active,
                             "hand_jitter_deg": dict(zip(("tilt", "azimuth", "roll"), HAND_JITTER_DEG))},
-            "tilts": [{"tilt_deg": r.tilt_deg, "unusable_trials": r.unusable,
-                       **{m: dict(zip(("mean_cm", "p90_cm"), (round(v, 4) for v in stats_cm(e))))
-                          for m, e in r.errors.items()}} for r in results],
-            "cdf": str(cdf) if cdf else None}, indent=2, allow_nan=False if all(_finite(r) for r in results) else True))
+            "tilts": figures["all"], "pixel_only": [dict(t) for t in figures.get("edge", figures["exact"])],
+            "budget": figures, "cdf": str(cdf) if cdf else None}, indent=2, allow_nan=not finite))
         return 0
-    print(f"vlp-accuracy: the paper's rig in simulation; LED radius {args.radius:g} m, edge noise "
-          f"{args.noise_px:g} px then whole pixels, 4000 x 3000 px at 50.4 deg, 16 points x {args.trials} trials, "
-          f"hand jitter +-{HAND_JITTER_DEG[0]:g}/{HAND_JITTER_DEG[1]:g}/{HAND_JITTER_DEG[2]:g} deg (tilt/azimuth/roll)")
-    print(table3_text(results))
-    skipped = sum(r.unusable for r in results)
+    print(f"vlp-accuracy: the paper's rig in simulation; LED radius {args.radius:g} m, 4000 x 3000 px at 50.4 deg, "
+          f"16 points x {args.trials} trials, hand jitter +-{HAND_JITTER_DEG[0]:g}/{HAND_JITTER_DEG[1]:g}/"
+          f"{HAND_JITTER_DEG[2]:g} deg (tilt/azimuth/roll)")
+    print(f"all terms: {included_text(terms)}")
+    print(table3_text(pixel, runs["all"]))
+    print()
+    print(budget_text(runs))
+    skipped = max(sum(r.unusable for r in rs) for rs in runs.values())
     if skipped:
-        print(f"{skipped} trials saw fewer than three whole LEDs and are not counted")
+        print(f"up to {skipped} trials of a run saw fewer than three whole LEDs and are not counted")
     if cdf is not None:
         print(f"wrote {cdf}")
     return 0
-
-
-def _finite(r) -> bool:
-    from planner.positioning.accuracy import stats_cm
-
-    return all(math.isfinite(v) for e in r.errors.values() for v in stats_cm(e))
 
 
 def console_main(argv: list[str] | None = None) -> int:

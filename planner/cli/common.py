@@ -20,11 +20,20 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from planner import __version__
 from planner.defaults import (
     CONGRUENCE_TOLERANCE_M,
+    DISTORTION_RESIDUAL_PX,
+    FOCAL_ERROR_PCT,
+    INSTALL_ERROR_M,
     INSTALL_TOLERANCE_M,
+    MAX_PHONE_SPEED_M_S,
+    MAX_PHONE_TURN_DEG_S,
     MAX_PLAN_POSES,
     MAX_POSES_PER_M2,
     MAX_SEED,
+    NOISE_PX,
+    PHONE_SPEED_M_S,
+    PHONE_TURN_DEG_S,
     POSES_PER_M2,
+    PRINCIPAL_ERROR_PX,
     UNIT_TO_M,
 )
 from planner.errors import ExitCode, PlannerError, UsageError
@@ -165,6 +174,42 @@ def add_camera_flag(g, default: str) -> None:
     g.add_argument("--camera", metavar="NAME|YAML",
                    help="camera profile (paper, main, wide, ultrawide, ...: vlp-plan --list-cameras) or camera "
                    f"file (docs/camera.md); {default}")
+
+
+def add_error_budget_flags(p: argparse.ArgumentParser, what: str) -> None:
+    """The error budget's terms (:class:`~planner.positioning.error_terms.ErrorTerms`), one group; ``what`` is
+    the simulation they enter. :func:`error_terms` reads them."""
+    g = p.add_argument_group("error budget", f"Error sources {what} simulates besides the method's own; 0 switches "
+                             "one off (docs/positioning.md#error-budget).")
+    g.add_argument("--install-error", type=non_negative_float, default=INSTALL_ERROR_M, metavar="M",
+                   help="luminaires lie uniformly within this distance of their drawn position, horizontally "
+                   f"[m] (default {INSTALL_ERROR_M:g}, assumed)")
+    g.add_argument("--focal-error", type=at_most(100.0, strict=False), default=FOCAL_ERROR_PCT, metavar="PCT",
+                   help=f"calibrated focal length's error, 1 sigma [%%] (default {FOCAL_ERROR_PCT:g})")
+    g.add_argument("--principal-error-px", type=non_negative_float, default=PRINCIPAL_ERROR_PX, metavar="PX",
+                   help=f"calibrated principal point's error per axis, 1 sigma [px] (default {PRINCIPAL_ERROR_PX:g})")
+    g.add_argument("--distortion-residual-px", type=non_negative_float, default=DISTORTION_RESIDUAL_PX, metavar="PX",
+                   help="lens distortion left after calibration, RMS over the image, 1 sigma [px] (default "
+                   f"{DISTORTION_RESIDUAL_PX:g})")
+    g.add_argument("--noise-px", type=non_negative_float, default=NOISE_PX, metavar="PX",
+                   help=f"edge-point noise before rounding to whole pixels, 1 sigma [px] (default {NOISE_PX:g})")
+    g.add_argument("--phone-speed", type=at_most(MAX_PHONE_SPEED_M_S, strict=False), default=PHONE_SPEED_M_S,
+                   metavar="M/S", help="speed of the phone during the rolling shutter's readout, in a random "
+                   f"horizontal direction [m/s] (default {PHONE_SPEED_M_S:g}, assumed)")
+    g.add_argument("--phone-turn", type=at_most(MAX_PHONE_TURN_DEG_S, strict=False), default=PHONE_TURN_DEG_S,
+                   metavar="DEG/S", help="angular rate of the phone during the readout, about a random axis [deg/s] "
+                   f"(default {PHONE_TURN_DEG_S:g}, assumed)")
+    g.add_argument("--pixel-noise-only", action="store_true",
+                   help="switch every term but the edge noise off (the model before the error budget)")
+
+
+def error_terms(args: argparse.Namespace):
+    """The :class:`~planner.positioning.error_terms.ErrorTerms` the flags of :func:`add_error_budget_flags` ask for."""
+    from planner.positioning.error_terms import ErrorTerms
+
+    terms = ErrorTerms(args.install_error, args.focal_error / 100, args.principal_error_px,
+                       args.distortion_residual_px, args.noise_px, args.phone_speed, math.radians(args.phone_turn))
+    return terms.only("edge") if args.pixel_noise_only else terms
 
 
 def camera_from_args(args) -> Camera:

@@ -88,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                    default=ERROR_POSES_PER_M2, metavar="N",
                    help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
                    "0 skips the map)")
+    cli.add_error_budget_flags(p, "the error map")
     g = p.add_argument_group("firmware")
     g.add_argument("--templates", metavar="DIR",
                    help="render every *.j2 template in DIR per luminaire instead of the bundled ones (docs/firmware.md)")
@@ -140,8 +141,9 @@ def main(argv: list[str] | None = None) -> int:
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, camera, not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
-                                         args.driver_max_hz, args.install_tolerance, receiver=args.receiver,
-                                         video_fps=args.video_fps, max_video_frames=args.max_video_frames))
+                                         args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
+                                         video_fps=args.video_fps, max_video_frames=args.max_video_frames,
+                                         mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
@@ -252,8 +254,18 @@ def _print_summary(s: dict) -> None:
             print("           single-frame: one LED image holds a whole frame")
     a = s["accuracy"]
     if a and a["located"]:
+        from planner.positioning.error_terms import TERM_NAMES, ErrorTerms, included_text
+
         print(f"  accuracy {a['method']} method: median {length_text(a['median_m'])}, 90 % {length_text(a['p90_m'])}, "
-              f"max {length_text(a['max_m'])} over {a['located']} simulated poses (edge noise {a['noise_px']:g} px)")
+              f"max {length_text(a['max_m'])} over {a['located']} simulated poses, including "
+              f"{included_text(ErrorTerms.from_dict(a['terms']))}")
+        if a["dominant"]:
+            b = a["budget"]
+            alone = ", ".join(f"{k} {length_text(v['median_m'])}" for k, v in b.items()
+                              if k not in ("all", "exact") and v["median_m"] is not None)
+            exact = b["exact"]["median_m"]
+            print(f"  budget   median with exact images {length_text(exact) if exact is not None else '-'}; each term "
+                  f"alone: {alone}; {TERM_NAMES[a['dominant']]} dominates")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
 
 

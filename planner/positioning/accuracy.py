@@ -1,14 +1,16 @@
 """Positioning accuracy by simulation: the paper's experiment (Tables 2-3) and a site's error map.
 
-Every trial is a camera pose, the observation model's fitted ellipses for it
-(:mod:`planner.positioning.observation`) and a position found by a method (``paper`` or
-``perspective``); the error is the distance [m] from the true camera centre.
+Every trial is a camera pose, the ellipses fitted to its image with the error terms at work
+(:mod:`planner.positioning.error_terms`; pixel noise alone is the observation model of
+:mod:`planner.positioning.observation`) and a position found by a method (``paper`` or
+``perspective``); the error is the distance [m] from the true camera centre. The budget runs
+each term alone and all together on the same poses.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,8 +19,17 @@ from planner.camera import Camera, Poses, rotation_from_angles
 from planner.defaults import ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
 from planner.plot_style import save_png, styled
+from planner.positioning.error_terms import (
+    DEFAULT_TERMS,
+    NO_TERMS,
+    PIXEL_ONLY,
+    ErrorTerms,
+    dominant,
+    installed,
+    observe_with,
+    streams,
+)
 from planner.positioning.locate import METHODS
-from planner.positioning.observation import NOISE_PX, observe
 
 if TYPE_CHECKING:
     from planner.verify.windows import PoseSample
@@ -62,11 +73,15 @@ def _trial_pose(aim: np.ndarray, azimuth: float, tilt_deg: float, rng: np.random
     return position, rotation
 
 
-def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, noise_px: float = NOISE_PX,
+def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTerms = PIXEL_ONLY,
                      radius_m: float = PAPER_RADIUS_M, seed: int = 0, camera: Camera | None = None) -> list[Trials]:
-    """Table 3 in simulation: 16 test points x ``trials`` at each tilt, both methods on the same images."""
+    """Table 3 in simulation: 16 test points x ``trials`` at each tilt, both methods on the same images.
+
+    The rig is installed afresh for every trial (``terms.install_m``); the poses depend on
+    ``seed`` only, so runs with other terms see the same poses.
+    """
     camera = camera or Camera()
-    rng = np.random.default_rng(seed)
+    rngs = streams(seed)
     radii = np.full(len(PAPER_LEDS_M), radius_m)
     aims, azimuths = paper_test_points()
     out = []
@@ -75,15 +90,34 @@ def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, noise_px: floa
         unusable = 0
         for aim, az in zip(aims, azimuths):
             for _ in range(trials):
-                position, rotation = _trial_pose(aim, az, tilt, rng)
-                seen = observe(position, rotation, PAPER_LEDS_M, radii, camera, rng, noise_px)
+                position, rotation = _trial_pose(aim, az, tilt, rngs["pose"])
+                leds = installed(PAPER_LEDS_M, terms.install_m, rngs["install"])
+                seen = observe_with(position, rotation, leds, radii, camera, terms, rngs)
                 if len(seen.index) < 3:
                     unusable += 1
                     continue
                 for name, method in METHODS.items():
-                    errors[name].append(_error(method, seen, PAPER_LEDS_M, radii, camera, position))
+                    errors[name].append(_error(method, seen, PAPER_LEDS_M, radii, camera.ideal(), position))
         out.append(Trials(float(tilt), {m: np.array(v) for m, v in errors.items()}, unusable))
     return out
+
+
+def budget_runs(terms: ErrorTerms) -> dict[str, ErrorTerms]:
+    """The runs of a budget: ``exact`` images (no term: the method's own error), ``all`` (every term of
+    ``terms``), then each active term alone."""
+    return {"exact": NO_TERMS, "all": terms, **{name: terms.only(name) for name in terms.active}}
+
+
+def paper_budget(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTerms = DEFAULT_TERMS,
+                 radius_m: float = PAPER_RADIUS_M, seed: int = 0,
+                 camera: Camera | None = None) -> dict[str, list[Trials]]:
+    """:func:`paper_experiment` for every run of :func:`budget_runs`, on the same poses (runs with the same
+    terms, such as ``all`` and the one term switched on, are simulated once)."""
+    done: dict[ErrorTerms, list[Trials]] = {}
+    for t in budget_runs(terms).values():
+        if t not in done:
+            done[t] = paper_experiment(tilts_deg, trials, t, radius_m, seed, camera)
+    return {name: done[t] for name, t in budget_runs(terms).items()}
 
 
 def _error(method, seen, xyz, radii, camera, truth) -> float:
@@ -100,18 +134,36 @@ def stats_cm(errors: np.ndarray) -> tuple[float, float]:
     return (float(np.mean(e)) * 100, float(np.percentile(e, 90)) * 100) if len(e) else (math.nan, math.nan)
 
 
-def table3_text(results: list[Trials]) -> str:
-    """Table 3 shaped: per tilt, the paper's printed figures and both simulated methods [cm]."""
-    lines = ["tilt  paper's Table 3     paper method (sim)   perspective (sim)   ratio",
-             "deg   mean     90 %       mean     90 %        mean     90 %       mean",
-             ]
-    for r in results:
-        printed = PAPER_TABLE3_CM.get(int(r.tilt_deg), (math.nan, math.nan))
-        paper, persp = stats_cm(r.errors["paper"]), stats_cm(r.errors["perspective"])
-        ratio = paper[0] / persp[0] if persp[0] > 0 else math.inf
-        lines.append(f"{r.tilt_deg:>4.0f}  {printed[0]:6.2f}  {printed[1]:6.2f}     {paper[0]:7.2f}  {paper[1]:7.2f}"
-                     f"     {persp[0]:7.3f}  {persp[1]:7.3f}    {ratio:6.0f}x")
-    lines.append("errors in cm; ratio = paper method mean / perspective mean")
+def table3_text(pixel: list[Trials], full: list[Trials]) -> str:
+    """Table 3 shaped: per tilt, the paper's printed figures and both simulated methods with pixel noise only
+    and with every term on, mean / 90 % [cm]."""
+    lines = ["tilt  paper's Table 3   paper method (sim)              perspective (sim)",
+             "deg   mean    90 %      pixel only     all terms        pixel only     all terms"]
+    for p, f in zip(pixel, full):
+        printed = PAPER_TABLE3_CM.get(int(p.tilt_deg), (math.nan, math.nan))
+        cells = ["{:6.2f} {:6.2f}".format(*stats_cm(r.errors[m])) for m in ("paper", "perspective") for r in (p, f)]
+        lines.append(f"{p.tilt_deg:>4.0f}  {printed[0]:6.2f} {printed[1]:6.2f}    " + "   ".join(cells))
+    lines.append("errors in cm, mean and 90th percentile")
+    return "\n".join(lines)
+
+
+def dominant_term(runs: dict[str, list[Trials]], method: str, k: int) -> str | None:
+    """The largest contributor (:func:`~planner.positioning.error_terms.dominant`, on means) at tilt number ``k``."""
+    alone = {n: stats_cm(rs[k].errors[method])[0] for n, rs in runs.items()}
+    return dominant({n: v for n, v in alone.items() if math.isfinite(v)})
+
+
+def budget_text(runs: dict[str, list[Trials]]) -> str:
+    """The error budget per method and tilt: mean error [cm] with exact images, each term alone, all together."""
+    names = [*(n for n in runs if n != "all"), "all"]
+    lines = []
+    for method in METHODS:
+        lines += [f"error budget, {method} method: mean error [cm] with exact images, each term alone, all together",
+                  "tilt " + "".join(
+            f"{'exact images' if n == 'exact' else n:>13}" for n in names) + "  dominant"]
+        for k, r in enumerate(runs["all"]):
+            lines.append(f"{r.tilt_deg:>4.0f} " + "".join(f"{stats_cm(runs[n][k].errors[method])[0]:13.3f}"
+                                                          for n in names) + f"  {dominant_term(runs, method, k)}")
     return "\n".join(lines)
 
 
@@ -138,31 +190,44 @@ def plot_cdf(results: list[Trials], path) -> None:
 
 
 ERROR_MAX_POSES = 1000
-"""Most poses an error map simulates (about 6 s); larger sites get a sparser sample and larger squares."""
+"""Most poses an error map simulates (about 6 s, pixel noise only; the budget's runs on
+:data:`BUDGET_MAX_POSES` come on top); larger sites get a sparser sample and larger squares."""
 
 ERROR_CELL_M = 1.0
 """Smallest side of the squares over which the error map takes its median and 90th percentile [m];
 squares grow (in steps of 0.5 m) so that they hold about eight sampled poses each."""
 
 
+BUDGET_MAX_POSES = 250
+"""Most poses each term of a site's budget is run alone on (the first of the map's)."""
+
+
 @dataclass(frozen=True)
 class SiteAccuracy:
-    """Simulated errors over a site: sampled camera centres (P x 3) [m] and errors (P,) [m], NaN where
-    the pose gave no position (fewer than three whole LEDs, or all on one line)."""
+    """Simulated errors over a site: sampled camera centres (P x 3) [m] and errors (P,) [m] with ``terms`` at
+    work, NaN where the pose gave no position (fewer than three whole LEDs, or all on one line); ``budget``
+    holds each run of :func:`budget_runs` on the first poses: (poses located, median, 90th percentile [m])."""
 
     method: str
-    noise_px: float
+    terms: ErrorTerms
     position: np.ndarray
     error_m: np.ndarray
     cell_m: float = ERROR_CELL_M
+    budget: dict[str, tuple[int, float | None, float | None]] = field(default_factory=dict)
+
+    @property
+    def dominant(self) -> str | None:
+        """The largest contributor to the error (:func:`~planner.positioning.error_terms.dominant`, on medians)."""
+        return dominant({k: v[1] for k, v in self.budget.items() if v[1] is not None})
 
     def summary(self) -> dict:
         e = self.error_m[np.isfinite(self.error_m)]
         q = (lambda p: round(float(np.percentile(e, p)), 6)) if len(e) else (lambda p: None)
-        return {"method": self.method, "noise_px": self.noise_px, "poses": int(len(self.error_m)),
+        return {"method": self.method, "noise_px": self.terms.edge_px, "poses": int(len(self.error_m)),
                 "located": int(len(e)), "median_m": q(50), "p90_m": q(90), "max_m": q(100),
-                "cell_m": self.cell_m}
-
+                "cell_m": self.cell_m, "terms": self.terms.to_dict(), "includes": self.terms.active,
+                "budget": {k: {"located": n, "median_m": m, "p90_m": p} for k, (n, m, p) in self.budget.items()},
+                "dominant": self.dominant}
     def cells(self, cell_m: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Cell edges in x and y [m] and the median and 90th-percentile error per cell [m] (NaN: no fix)."""
         cell_m = cell_m or self.cell_m
@@ -189,30 +254,47 @@ def error_per_m2(area: np.ndarray, per_m2: float = ERROR_POSES_PER_M2) -> float:
 
 
 def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, method: str = "perspective",
-                  per_m2: float = ERROR_POSES_PER_M2, seed: int = 0, noise_px: float = NOISE_PX,
+                  per_m2: float = ERROR_POSES_PER_M2, seed: int = 0, terms: ErrorTerms = DEFAULT_TERMS,
                   sample: PoseSample | None = None) -> SiteAccuracy:
-    """Error map of ``method`` over a site: poses sampled as the verification samples them,
+    """Error map of ``method`` with ``terms`` over a site: poses sampled as the verification samples them,
     ``per_m2`` of floor but at most :data:`ERROR_MAX_POSES` (the first of ``sample``, a plan's one
-    draw with seed ``seed``, if given)."""
+    draw with seed ``seed``, if given); with two or more terms, the other runs of :func:`budget_runs`
+    (exact images, each term alone) on the first :data:`BUDGET_MAX_POSES` poses too."""
     from planner.verify.windows import sample_poses, working_area
 
     area = working_area(xyz[:, :2], outline) if sample is None else sample.area
     per_m2 = error_per_m2(area, per_m2)
     cell = max(ERROR_CELL_M, math.ceil(2 * math.sqrt(8 / per_m2)) / 2)
     poses = sample_poses(area, camera, per_m2=per_m2, seed=seed) if sample is None else sample.first(per_m2)[0]
-    errors = site_errors(xyz, radii, poses, camera, method, noise_px, seed)
-    return SiteAccuracy(method, noise_px, poses.position, errors, cell)
+    errors = site_errors(xyz, radii, poses, camera, method, terms, seed)
+    budget = {}
+    if len(terms.active) > 1:
+        first = poses.subset(slice(0, BUDGET_MAX_POSES))
+        for name, run in budget_runs(terms).items():
+            budget[name] = _quantiles(errors[:len(first)] if name == "all" else
+                                      site_errors(xyz, radii, first, camera, method, run, seed))
+    return SiteAccuracy(method, terms, poses.position, errors, cell, budget)
+
+
+def _quantiles(errors: np.ndarray) -> tuple[int, float | None, float | None]:
+    e = errors[np.isfinite(errors)]
+    if not len(e):
+        return 0, None, None
+    return len(e), round(float(np.median(e)), 6), round(float(np.percentile(e, 90)), 6)
 
 
 def site_errors(xyz: np.ndarray, radii: np.ndarray, poses: Poses, camera: Camera, method: str = "perspective",
-                noise_px: float = NOISE_PX, seed: int = 0) -> np.ndarray:
-    """Error [m] of ``method`` at every pose (NaN where the pose gives no position), identities known."""
-    rng = np.random.default_rng(seed)
+                terms: ErrorTerms = PIXEL_ONLY, seed: int = 0) -> np.ndarray:
+    """Error [m] of ``method`` at every pose with ``terms`` at work (NaN where the pose gives no position),
+    identities known; the site is installed once (``terms.install_m``)."""
+    rngs = streams(seed)
     locate = METHODS[method]
+    leds = installed(xyz, terms.install_m, rngs["install"])
+    believed = camera.ideal()
     out = np.full(len(poses), np.nan)
     rotations = poses.rotation
     for k in range(len(poses)):
-        seen = observe(poses.position[k], rotations[k], xyz, radii, camera, rng, noise_px)
+        seen = observe_with(poses.position[k], rotations[k], leds, radii, camera, terms, rngs)
         if len(seen.index) >= 3:
-            out[k] = _error(locate, seen, xyz, radii, camera, poses.position[k])
+            out[k] = _error(locate, seen, xyz, radii, believed, poses.position[k])
     return out

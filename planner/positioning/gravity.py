@@ -23,9 +23,10 @@ from scipy.spatial.transform import Rotation
 
 from planner.camera import Camera
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, MAX_RESIDUAL_PX
-from planner.ellipse import Ellipse, fit_ellipse
+from planner.ellipse import Ellipse
 from planner.errors import PositioningError
 from planner.positioning.fix import Fix, observed, residuals_batch, rms
+from planner.positioning.undistort import ideal_ellipses
 
 DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -57,24 +58,15 @@ def two_point_pose(xyz2: np.ndarray, rays2: np.ndarray, gravity_cam: np.ndarray)
     return position, turn @ level
 
 
-def ideal_ellipses(ellipses, camera: Camera) -> list[Ellipse]:
-    """The ellipses as an ideal pinhole of the same intrinsics would see them: 64 rim points of each
-    undistorted (:meth:`planner.camera.Camera.ideal_pixels`) and an ellipse fitted again."""
-    if not camera.distorted:
-        return list(ellipses)
-    phi = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
-    ring = np.column_stack([np.cos(phi), np.sin(phi)])
-    return [fit_ellipse(camera.ideal_pixels(e.centre + ring @ e.shape.T)) for e in ellipses]
-
-
 def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
                    ellipses: list[Ellipse], gravity_cam: np.ndarray, sigma_rad: float,
                    camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
     """Least squares over the pose on every LED's exact image against its ellipse (centre and shape,
-    whitened by one pixel; ideal-pinhole ellipses, :func:`ideal_ellipses`) and on gravity (whitened by
+    whitened by one pixel; ellipses undistorted by
+    :func:`planner.positioning.undistort.ideal_ellipses`) and on gravity (whitened by
     ``sigma_rad``). Returns the position, rotation and the ellipses' RMS residual [px]."""
-    ideal = camera.ideal()
-    centres, shapes = observed(ideal_ellipses(ellipses, camera))
+    undistorted, ideal = ideal_ellipses(ellipses, camera)
+    centres, shapes = observed(undistorted)
     g = np.asarray(gravity_cam, float) / np.linalg.norm(gravity_cam)
     args = (rotation, xyz, radii, centres, shapes, ideal)
 

@@ -23,6 +23,7 @@ from planner.errors import InputError, PositioningError
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
 from planner.positioning.paper import distance_weak_perspective, locate_paper
 from planner.positioning.perspective import initial_poses, locate_perspective
+from planner.positioning.undistort import ideal_ellipses
 
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
@@ -58,6 +59,13 @@ class Snapshot:
     gravity: np.ndarray | None = None
     gravity_sigma_rad: float = math.radians(1.0)
 
+    def ideal(self) -> Snapshot:
+        """This snapshot undistorted (:func:`planner.positioning.undistort.ideal_ellipses`): ellipses and
+        camera as an ideal pinhole sees them; itself when the camera does not distort."""
+        ellipses, camera = ideal_ellipses(self.ellipses, self.camera)
+        return self if camera is self.camera else Snapshot(camera, self.ids, ellipses, self.gravity,
+                                                            self.gravity_sigma_rad)
+
 
 @dataclass(frozen=True)
 class Located:
@@ -91,7 +99,9 @@ def _complete(site: Site, snap: Snapshot, anchor: list[int], combo: tuple, posit
 
 
 def identify(site: Site, snap: Snapshot, max_residual_px: float = MAX_RESIDUAL_PX) -> Located:
-    """The one set of luminaires whose exact images, at one pose, match the snapshot's ellipses."""
+    """The one set of luminaires whose exact images, at one pose, match the snapshot's ellipses
+    (a distorted snapshot is undistorted first)."""
+    snap = snap.ideal()
     cam, n = snap.camera, len(snap.ids)
     if n < 3:
         raise PositioningError(f"{n} LED{'s' if n != 1 else ''} in the image: a position needs at least three")
@@ -156,6 +166,7 @@ def locate(site: Site, snap: Snapshot, method: str = "perspective", max_residual
         if not np.any(site.ids == i):
             raise InputError(f"leds[{k}]: ID {i} is not in the plan (IDs there run {site.ids.min()}..{site.ids.max()}); "
                              "check the decoding, or that this plan is the site's")
+    snap = snap.ideal()
     if snap.gravity is not None:  # the gravity-aided receiver: two-LED window, two points plus gravity
         from planner.positioning.gravity import identify_gravity
 

@@ -18,6 +18,7 @@ from planner.camera import Camera
 from planner.ellipse import Ellipse
 from planner.errors import PositioningError
 from planner.positioning.fix import Fix, check_geometry, ellipse_residuals, orientation_at, rms
+from planner.positioning.undistort import ideal_ellipses
 
 
 def distance_weak_perspective(ellipse: Ellipse, radius_m: float, focal_px: float, cx_px: float, cy_px: float) -> float:
@@ -106,6 +107,7 @@ def locate_paper(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], ca
     centres) only to report how well the position explains the image (``residual_px``).
     """
     xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
+    ellipses, camera = ideal_ellipses(ellipses, camera)  # a distorting lens: undistorted first
     check_geometry(xyz)
     centres = np.array([e.centre for e in ellipses])
     off = np.hypot(centres[:, 0] - camera.cx_px, centres[:, 1] - camera.cy_px)

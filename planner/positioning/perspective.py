@@ -32,6 +32,7 @@ from planner.positioning.fix import (
     rms,
 )
 from planner.positioning.paper import distance_weak_perspective, trilaterate_least_squares, trilaterate_same_height
+from planner.positioning.undistort import ideal_ellipses
 
 
 def p3p_poses(xyz3: np.ndarray, centres3_px: np.ndarray, camera: Camera) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -99,6 +100,7 @@ def refine(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: n
 def locate_perspective(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], camera: Camera) -> Fix:
     """Camera pose from three or more identified LEDs (``xyz`` N x 3 [m], ``radii`` [m]) and their ellipses."""
     xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
+    ellipses, camera = ideal_ellipses(ellipses, camera)  # a distorting lens: undistorted first
     check_geometry(xyz)
     centres, shapes = observed(ellipses)
     best = None

@@ -3,7 +3,8 @@
 Format (``docs/positioning.md``), pixels with the origin at the image's top-left
 corner, full axis lengths, major-axis angle from the image x axis in degrees::
 
-    {"camera": {"fx": 4250.0, "fy": 4250.0, "cx": 2000.0, "cy": 1500.0, "width": 4000, "height": 3000},
+    {"camera": {"fx": 4250.0, "fy": 4250.0, "cx": 2000.0, "cy": 1500.0, "width": 4000, "height": 3000,
+                "lens": "pinhole", "distortion": [-0.2, 0.05]},
      "leds": [{"id": 5, "ellipse": {"cx": 2100.3, "cy": 1400.2, "major": 60.1, "minor": 50.2, "angle_deg": 30.0}}],
      "gravity": [0.05, -0.02, -0.99], "gravity_sigma_deg": 1.0}
 
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -27,11 +28,13 @@ from planner._schema import Count, Finite, Positive, validated
 from planner.camera import Camera
 from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
 from planner.ellipse import Ellipse
+from planner.lens import COEFFICIENTS, LENS_MODELS
 from planner.positioning.locate import Snapshot
 
 
 class _CameraFields(BaseModel):
-    """The receiver's intrinsics [px]; ``fy`` defaults to ``fx``, the principal point to the image centre."""
+    """The receiver's intrinsics [px]; ``fy`` defaults to ``fx``, the principal point to the image centre;
+    ``lens`` and ``distortion`` as in a camera YAML (docs/camera.md), none by default."""
 
     model_config = ConfigDict(extra="ignore", frozen=True)
 
@@ -41,6 +44,15 @@ class _CameraFields(BaseModel):
     cy: Finite | None = None
     width: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)]
     height: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)]
+    lens: Literal[LENS_MODELS] = "pinhole"  # type: ignore[valid-type]
+    distortion: Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)] = []
+
+    @model_validator(mode="after")
+    def _coefficients(self) -> _CameraFields:
+        if len(self.distortion) > len(COEFFICIENTS[self.lens]):
+            raise ValueError(f"the {self.lens} lens takes at most {len(COEFFICIENTS[self.lens])} distortion "
+                             f"coefficients ({' '.join(COEFFICIENTS[self.lens])}), got {len(self.distortion)}")
+        return self
 
 
 class _EllipseFields(BaseModel):
@@ -94,7 +106,8 @@ def parse_snapshot(doc, where: str = "observation") -> Snapshot:
     obs = validated(ObservationFile, doc, where, "an observation", strict=True)
     c = obs.camera
     camera = Camera(c.width, c.height, c.fx, c.fy if c.fy is not None else c.fx,
-                    c.cx if c.cx is not None else c.width / 2, c.cy if c.cy is not None else c.height / 2)
+                    c.cx if c.cx is not None else c.width / 2, c.cy if c.cy is not None else c.height / 2,
+                    lens=c.lens, distortion=tuple(c.distortion))
     gravity = None if obs.gravity is None else np.array(obs.gravity) / math.hypot(*obs.gravity)
     return Snapshot(camera, [led.id for led in obs.leds],
                     [Ellipse(e.cx, e.cy, e.major, e.minor, math.radians(e.angle_deg) % math.pi)
@@ -112,7 +125,8 @@ def snapshot_document(snap: Snapshot) -> dict:
     c = snap.camera
     return {
         "camera": {"fx": round(c.fx_px, 3), "fy": round(c.fy_px, 3), "cx": round(c.cx_px, 3), "cy": round(c.cy_px, 3),
-                   "width": c.width_px, "height": c.height_px},
+                   "width": c.width_px, "height": c.height_px,
+                   **({"lens": c.lens, "distortion": [float(k) for k in c.distortion]} if c.distorted else {})},
         "leds": [{"id": int(i), "ellipse": {"cx": round(e.cx, 3), "cy": round(e.cy, 3), "major": round(e.major, 3),
                                             "minor": round(e.minor, 3),
                                             "angle_deg": round(math.degrees(e.angle_rad), 3)}}

@@ -151,9 +151,16 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
                                                                       "one whole LED" if one is not None else "")))
     if acc and acc.located and acc.median_m is not None and acc.p90_m is not None:
         rows.append(("expected error", f"{acc.method} method: median {length_text(acc.median_m)}, 90 % "
-                                       f"{length_text(acc.p90_m)} ({acc.located} of {acc.poses} poses located)"))
+                                       f"{length_text(acc.p90_m)} ({acc.located} of {acc.poses} poses located); "
+                                       f"{error_includes(plan)}"))
     elif acc:
         rows.append(("expected error", f"{acc.method} method: none of {acc.poses} sampled poses located"))
+    if acc and acc.dominant:
+        alone = ", ".join(f"{_term_name(k)} {length_text(b.median_m)}" for k, b in acc.budget.items()
+                          if k not in ("all", "exact") and b.median_m is not None)
+        exact = acc.budget["exact"].median_m if "exact" in acc.budget else None
+        rows.append(("error budget", (f"median with exact images {length_text(exact)}; " if exact is not None else "")
+                     + f"each term alone: {alone}; {_term_name(acc.dominant)} dominates"))
     if mod:
         rows.append(("modulation", f"{mod.line_code}, {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
                                    f"per frame ({1e3 * mod.frame_period_s:.3f} ms), "
@@ -165,6 +172,53 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
     failed = sum(s.status == "failed" for s in stops)
     rows.append(("flashing", f"{done} of {len(stops)} drivers verified" + (f", {failed} failed" if failed else "")))
     return rows
+
+
+def _term_name(term: str) -> str:
+    from planner.positioning.error_terms import TERM_NAMES
+
+    return TERM_NAMES.get(term, term)
+
+
+def error_includes(plan: PlanFile) -> str:
+    """What the plan's expected-error figures include, in a sentence (pixel noise only for plans made before
+    the error budget)."""
+    from planner.positioning.error_terms import ErrorTerms, included_text
+
+    acc = plan.accuracy
+    if acc is None:
+        return ""
+    noise = getattr(acc, "noise_px", None)
+    if acc.terms is None:
+        return (f"includes edge noise ({noise:g} px) only: " if noise is not None else "includes pixel noise only: ") + \
+            "install, calibration and motion errors come on top (the plan predates the error budget)"
+    terms = ErrorTerms.from_dict(acc.terms)
+    left = [name for name in ("install", "calibration", "edge", "skew") if name not in terms.active]
+    return f"includes {included_text(terms)}" + (f"; leaves out {', '.join(_term_name(n) for n in left)}" if left else "")
+
+
+def budget_rows(plan: PlanFile) -> list[tuple[str, str, str, int, str]]:
+    """The error budget, each term alone then all together: (term, median, 90 %, poses located, values);
+    empty for a plan without one."""
+    from planner.positioning.error_terms import ErrorTerms, describe
+
+    acc = plan.accuracy
+    if acc is None or not acc.budget or acc.terms is None:
+        return []
+    values = describe(ErrorTerms.from_dict(acc.terms))
+    rows = []
+    for k in [*(k for k in acc.budget if k != "all"), "all"]:
+        b = acc.budget[k]
+        name = "all together" if k == "all" else _term_name(k) + (" (dominates)" if k == acc.dominant else "")
+        med, p90 = (length_text(v) if v is not None else "-" for v in (b.median_m, b.p90_m))
+        rows.append((name, med, p90, b.located, values.get(k, "exact images, no error source" if k == "exact" else "")))
+    return rows
+
+
+def budget_lines(rows: list[tuple[str, str, str, int, str]]) -> tuple[str, list[str]]:
+    """:func:`budget_rows` as a header and fixed-width text lines (the PDF's page)."""
+    header = f"{'term':<38} {'median':>9} {'90 %':>9} {'located':>8}  values"
+    return header, [f"{n:<38} {m:>9} {p:>9} {k:>8}  {v}" for n, m, p, k, v in rows]
 
 
 def length_text(metres: float) -> str:

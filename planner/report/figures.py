@@ -198,8 +198,10 @@ def _image_page(pdf, title: str, png: bytes | None, missing: str) -> None:
 
 @styled
 def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[str, str]], sections: list[tuple[str, bytes | None, str]],
-              bill: tuple[str, list[str]], checklist: tuple[str, list[str]]) -> None:
-    """Write the report as PDF: a title page with the summary, one page per figure, then the bill and checklist."""
+              bill: tuple[str, list[str]], checklist: tuple[str, list[str]],
+              budget: tuple[str, list[str]] | None = None) -> None:
+    """Write the report as PDF: a title page with the summary, one page per figure, the error budget (if any),
+    then the bill and checklist."""
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
@@ -207,12 +209,17 @@ def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[s
         fig = plt.figure(figsize=PAGE_IN)
         fig.text(0.06, 0.88, title, fontsize=18, weight="bold")
         fig.text(0.06, 0.84, subtitle, fontsize=10, color="0.3")
-        for k, (label, value) in enumerate(summary):
-            fig.text(0.06, 0.78 - k * 0.055, label, fontsize=11, weight="bold", va="top")
-            fig.text(0.24, 0.78 - k * 0.055, "\n".join(textwrap.wrap(value, 95)), fontsize=11, va="top")
+        y = 0.78
+        for label, value in summary:  # a long value wraps, and the next row starts below it
+            wrapped = textwrap.wrap(value, 95)
+            fig.text(0.06, y, label, fontsize=11, weight="bold", va="top")
+            fig.text(0.24, y, "\n".join(wrapped), fontsize=11, va="top")
+            y -= 0.055 + 0.026 * (len(wrapped) - 1)
         pdf.savefig(fig)
         plt.close(fig)
         for name, png, missing in sections:
             _image_page(pdf, name, png, missing)
+        if budget is not None:
+            _text_pages(pdf, "Error budget: each term alone, then all together", *budget)
         _text_pages(pdf, "ID bill", *bill)
         _text_pages(pdf, "Installers' checklist", *checklist)

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
-from planner.report.content import checklist, id_bill, summary, walking_order
+from planner.report.content import budget_lines, budget_rows, checklist, error_includes, id_bill, summary, walking_order
 from planner.report.figures import bill_lines, checklist_lines, route_figure, timing_diagram, timing_examples, write_pdf
 
 if TYPE_CHECKING:
@@ -28,7 +28,7 @@ MAPS = (
     ("coverage", "coverage.png", "Coverage",
      "Share of sampled camera poses (height, tilt, heading) whose view decodes to one place; dark is bad."),
     ("error", "error.png", "Expected positioning error",
-     "Simulated fixes over the site with pixel noise only; survey and lens errors come on top."),
+     "Simulated fixes over the site"),
 )
 """The maps the report embeds: (anchor, file in the plan's directory, heading, caption)."""
 
@@ -65,8 +65,12 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     head = summary(plan, stops)
     title = f"VLP site report: {plan.source.get('file', plan_dir.name)}"
     figures = []
+    budget = budget_rows(plan)
     for anchor, file, name, caption in MAPS:
         png = plan_dir / file
+        if anchor == "error" and plan.accuracy is not None:
+            caption = f"{caption}, {plan.accuracy.method} method; {error_includes(plan)}" + \
+                ("; the budget below gives each term alone." if budget else ".")
         figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
                         f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify)."))
     if plan.modulation is not None:
@@ -82,7 +86,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
         "title": title, "generator": generator, "plan_hash": plan_hash, "journal_note": journal_note,
         "summary": head, "stops": stops, "bill": bill,
         "contents": [("summary", "Summary")] + [(a, n) for a, n, *_ in figures]
-                    + [("bill", "ID bill"), ("checklist", "Checklist")],
+                    + [("budget", "Error budget")] * bool(budget) + [("bill", "ID bill"), ("checklist", "Checklist")],
+        "budget": budget, "error_includes": error_includes(plan),
         "figures": [{"anchor": a, "name": n, "caption": c, "missing": m,
                      "data": base64.b64encode(png).decode("ascii") if png else None}
                     for a, n, png, c, m in figures],
@@ -93,5 +98,5 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     sections = [(n, png, m) for _, n, png, _, m in figures]
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
-        bill_lines(bill), checklist_lines(stops)))
+        bill_lines(bill), checklist_lines(stops), budget_lines(budget) if budget else None))
     return [html_path, pdf_path]

@@ -145,6 +145,8 @@ def render_error(plan: Plan, path: str | Path) -> None:
 
     Dark is bad (large error); squares where no sampled pose gave a position are light grey.
     """
+    from planner.positioning.error_terms import TERM_NAMES
+
     acc = plan.accuracy
     assert acc is not None  # drawn only for a plan with an error map
     ex, ey, med, p90 = acc.cells()
@@ -166,6 +168,7 @@ def render_error(plan: Plan, path: str | Path) -> None:
     axes[0].set_ylabel("y [m]")
     fig.colorbar(mesh, ax=list(axes), label=f"position error [{unit}]", fraction=0.03)
     s = acc.summary()
-    fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method, edge noise {s['noise_px']:g} px, "
+    fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method with "
+                 f"{', '.join(TERM_NAMES[k] for k in s['includes']) or 'exact images'}, "
                  f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
     save_png(fig, path)

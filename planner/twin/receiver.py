@@ -269,11 +269,16 @@ def _read(blob: Blob) -> tuple[int, Ellipse]:
 
 
 def _off_centre(blob: Blob, camera: Camera) -> float:
+    """Distance of the blob's centre from the principal point in ideal pixels (undistorted: by ray angle)."""
     ellipse = _read(blob)[1]
+    if camera.distorted:
+        u, v = camera.ideal_pixels(ellipse.centre)
+        return math.hypot(u - camera.cx_px, v - camera.cy_px)
     return math.hypot(ellipse.cx - camera.cx_px, ellipse.cy - camera.cy_px)
 
 
 def snapshot(blobs: list[Blob], camera: Camera) -> Snapshot:
-    """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first."""
+    """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first
+    (distorted ellipses and the distorting camera: positioning undistorts them, :meth:`Snapshot.ideal`)."""
     read = [_read(blobs[k]) for k in read_blobs(blobs, camera)]
     return Snapshot(camera, [led_id for led_id, _ in read], [ellipse for _, ellipse in read])

@@ -8,14 +8,21 @@ its row's exposure, the drive being the LED's frame (``plan.yaml``'s chips)
 repeated at the site's chip rate from a random start phase. Then optics blur
 (Gaussian), shot and read noise, and 8-bit quantisation. Pixel ``(v, u)`` has
 its centre at image coordinates ``(u, v)``, as in the observation model.
+
+Through a distorting lens the disc's image is no conic: each pixel centre is mapped to
+where the ideal pinhole of the same intrinsics would see it (``Camera.ideal_pixels``, from
+a cubic spline of a map sampled every :data:`MAP_STEP_PX`) and tested against the disc's
+ideal conic there; the antialiasing distance is then in ideal pixels (docs/twin.md).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
+from scipy.interpolate import RectBivariateSpline
 
 from planner.camera import Camera, disc_dual_conic, project_discs_at
 from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
@@ -86,14 +93,47 @@ def exposure_means(chips: str, phase_chips: float, row_start_s: np.ndarray, expo
     return (integral(start + span) - integral(start)) / span
 
 
+MAP_STEP_PX = 8
+"""Spacing of the samples of a distorting lens's pixel -> ideal-pixel map that the renderer interpolates [px]."""
+
+
+@lru_cache(maxsize=4)
+def _ideal_map(camera: Camera) -> tuple[RectBivariateSpline, RectBivariateSpline] | None:
+    """Cubic splines (rows, columns) -> ideal u, v of the camera's pixel map; None where the map folds in view."""
+    u = np.arange(-2 * MAP_STEP_PX, camera.width_px + 3 * MAP_STEP_PX, MAP_STEP_PX, dtype=float)
+    v = np.arange(-2 * MAP_STEP_PX, camera.height_px + 3 * MAP_STEP_PX, MAP_STEP_PX, dtype=float)
+    grid = camera.ideal_pixels(np.stack(np.meshgrid(u, v), axis=-1))
+    if not np.isfinite(grid).all():
+        return None
+    return RectBivariateSpline(v, u, grid[..., 0]), RectBivariateSpline(v, u, grid[..., 1])
+
+
+def _ideal_grid(camera: Camera, cols: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ideal pixel coordinates (u, v), each (rows, cols), of the pixel centres of a block of the frame."""
+    splines = _ideal_map(camera)
+    if splines is None:  # a folding lens: every pixel through Newton's method (NaN where it folds)
+        grid = camera.ideal_pixels(np.stack(np.meshgrid(cols, rows), axis=-1))
+        return grid[..., 0], grid[..., 1]
+    return splines[0](rows, cols), splines[1](rows, cols)
+
+
 def _coverage(u: np.ndarray, v: np.ndarray, centre: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Share of each pixel inside the ellipse ``(p - c)^T q (p - c) <= 1``, from the signed distance to its rim."""
-    du, dv = u[None, :] - centre[0], v[:, None] - centre[1]
+    return _coverage_at(u[None, :] - centre[0], v[:, None] - centre[1], q)
+
+
+def _coverage_at(du: np.ndarray, dv: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """:func:`_coverage` at offsets ``du, dv`` (broadcast together) from the ellipse's centre [px]."""
     gu, gv = q[0, 0] * du + q[0, 1] * dv, q[1, 0] * du + q[1, 1] * dv
     d = du * gu + dv * gv
     root = np.sqrt(np.maximum(d, 1e-12))
     signed = (root - 1.0) * root / np.maximum(np.hypot(gu, gv), 1e-12)  # [px], negative inside
     return np.clip(0.5 - signed, 0.0, 1.0)
+
+
+def _unit_circle(count: int = 128) -> np.ndarray:
+    phi = 2 * np.pi * np.arange(count) / count
+    return np.column_stack([np.cos(phi), np.sin(phi)])
 
 
 def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate_hz: float, camera: Camera,
@@ -123,13 +163,22 @@ def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate
     for k in np.flatnonzero(in_front & ok):
         m2 = shapes[k] @ shapes[k]
         half = np.sqrt(np.diag(m2))
-        u0, v0 = np.floor(centres[k] - half - margin).astype(int)
-        u1, v1 = np.ceil(centres[k] + half + margin).astype(int)
+        if camera.distorted:  # the block holding the disc's distorted rim
+            rim = camera.distorted_pixels(centres[k] + _unit_circle() @ shapes[k])
+            lo, hi = np.nanmin(rim, axis=0) - margin, np.nanmax(rim, axis=0) + margin
+        else:
+            lo, hi = centres[k] - half - margin, centres[k] + half + margin
+        u0, v0 = np.floor(lo).astype(int)
+        u1, v1 = np.ceil(hi).astype(int)
         u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, width - 1), min(v1, height - 1)
         if u0 > u1 or v0 > v1:
             continue
         rows = np.arange(v0, v1 + 1)
-        cover = _coverage(np.arange(u0, u1 + 1, dtype=float), rows.astype(float), centres[k], np.linalg.inv(m2))
+        if camera.distorted:
+            iu, iv = _ideal_grid(camera, np.arange(u0, u1 + 1, dtype=float), rows.astype(float))
+            cover = np.nan_to_num(_coverage_at(iu - centres[k][0], iv - centres[k][1], np.linalg.inv(m2)))
+        else:
+            cover = _coverage(np.arange(u0, u1 + 1, dtype=float), rows.astype(float), centres[k], np.linalg.inv(m2))
         drive = exposure_means(chips[k], phase[k], rows * camera.row_time_s, sensor.exposure_s, chip_rate_hz,
                                sensor.off_level)
         img[v0:v1 + 1, u0:u1 + 1] += (sensor.led_dn * gain[k]) * cover * drive[:, None].astype(np.float32)

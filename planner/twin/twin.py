@@ -119,7 +119,22 @@ def _truth(twin: Twin, position: np.ndarray, rotation: np.ndarray) -> tuple[np.n
     front = project_discs_at(position[None], rotation[None], site.xyz[None], site.radii[None], twin.camera)["in_front"][0]
     index = np.flatnonzero(ok & front)
     whole = seen_leds(position, rotation, site.xyz, site.radii, twin.camera)
-    return index, centres[index], np.linalg.eigvalsh(shapes[index])[:, 0], whole
+    minor = np.linalg.eigvalsh(shapes[index])[:, 0]
+    if twin.camera.distorted:  # the images through the lens: centre moved, minor axis scaled by the local map
+        centres, minor = _through_lens(twin.camera, centres[index], minor)
+        return index, centres, minor, whole
+    return index, centres[index], minor, whole
+
+
+def _through_lens(camera: Camera, ideal_px: np.ndarray, minor_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the lens puts ideal image centres [px], and minor semi-axes scaled by the map's least stretch there."""
+    step = 0.5
+    at = camera.distorted_pixels(ideal_px)
+    du = (camera.distorted_pixels(ideal_px + [step, 0.0]) - at) / step
+    dv = (camera.distorted_pixels(ideal_px + [0.0, step]) - at) / step
+    jac = np.stack([du, dv], axis=-1)  # (N, 2, 2): columns d/du, d/dv
+    least = np.linalg.svd(jac, compute_uv=False)[:, -1] if len(jac) else np.ones(0)
+    return at, minor_px * least
 
 
 def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, blobs: list[Blob],

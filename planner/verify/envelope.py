@@ -1,7 +1,8 @@
 """The pose envelope the proof of :mod:`planner.verify.proof` assumes, from the camera and the site.
 
-One ceiling plane, a pinhole camera with square pixels, receiver heights and the largest
-tilt: from these the angles (the cone inscribed in the image, the corner cone, an LED
+One ceiling plane, a pinhole camera with square pixels (and, if the lens distorts, a radial
+pinhole-model lens proved to map the view rectangle onto the sensor, :func:`proved_view`),
+receiver heights and the largest tilt: from these the angles (the cone inscribed in the image, the corner cone, an LED
 disc's largest angular radius) and lengths (the spindle radius ``R``, the axis disc ``ρ``,
 the reach) that the proof's two cases use. A site or camera outside them is not proved
 (:class:`NotProvable` says why) and is sampled instead.
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner import lens
 from planner.camera import Camera
 from planner.errors import PlanningError
 from planner.verify.window_set import SAME_HEIGHT_M
@@ -74,6 +76,49 @@ class Envelope:
                 "reach_m": round(self.reach_m, 4), "axis_reach_m": round(self.axis_reach_m, 4)}
 
 
+def proved_view(camera: Camera) -> None:
+    """Prove that ``camera.view_px`` (the rectangle of ideal pixels in which an LED counts as wholly seen)
+    lies on the sensor and that the lens does not fold over it; :class:`NotProvable` says why not.
+
+    For OpenCV's pinhole model with radial terms only, ``ρ(r) = r L(r^2)``, ``L(s) = 1 + k1 s + k2 s^2 +
+    k3 s^3``. If ``dρ/dr > 0`` up to the farthest corner of the view and of the image (exact minimum of a
+    cubic in ``s``: the map is monotone over the whole image), every
+    point ``t q`` (``q`` on the view's border, ``0 <= t <= 1``) distorts onto the segment from the principal
+    point to ``q``'s image; so it is enough that every border point lands on the sensor: on a side at
+    ``x = X`` with ``y`` in ``[y0, y1]``, ``|x_d| <= |X| max L`` and ``|y_d| <= |y| max L`` with ``max L`` over
+    that side's ``s`` range (exact again). Tangential terms and the fisheye model are not covered.
+    """
+    if not camera.distorted:
+        return
+    if camera.lens != "pinhole":
+        raise NotProvable(f"the proof covers the pinhole lens model's radial terms; the {camera.lens} lens is "
+                          "verified by sampling")
+    k = camera.dist_coeffs
+    if k[2] or k[3]:
+        raise NotProvable(f"the lens has tangential distortion (p1={k[2]:g}, p2={k[3]:g}), which the proof does "
+                          "not cover; verified by sampling")
+    u0, u1, v0, v1 = camera.view_px
+    f, cx, cy = camera.fx_px, camera.cx_px, camera.cy_px
+    x0, x1, y0, y1 = (u0 - cx) / f, (u1 - cx) / f, (v0 - cy) / f, (v1 - cy) / f
+    sensor = (-cx / f, (camera.width_px - cx) / f, -cy / f, (camera.height_px - cy) / f)
+    big_l, slope = lens.radial_polynomials(camera.distortion)
+    corners = camera.normalized(np.array([[0.0, 0.0], [camera.width_px, 0.0], [0.0, camera.height_px],
+                                          [camera.width_px, camera.height_px]], dtype=float))
+    if np.isnan(corners).any():
+        raise NotProvable("the lens's radial map folds inside the image (in its corners, beyond the view)")
+    corner2 = max(max(x0 * x0, x1 * x1) + max(y0 * y0, y1 * y1), float(np.max(np.sum(corners**2, axis=1))))
+    if lens.poly_range(slope, 0.0, corner2)[0] <= 0:
+        raise NotProvable("the lens's radial map is not monotone over the image (it folds before "
+                          f"{math.degrees(math.atan(math.sqrt(corner2))):.1f} deg off axis)")
+    t = np.polynomial.Polynomial([0.0, 1.0])  # the coordinate along a side
+    for fixed, (lo, hi), (a, b), (c, d) in ((x0, (y0, y1), sensor[:2], sensor[2:]), (x1, (y0, y1), sensor[:2], sensor[2:]),
+                                            (y0, (x0, x1), sensor[2:], sensor[:2]), (y1, (x0, x1), sensor[2:], sensor[:2])):
+        radial = big_l(fixed * fixed + t * t)  # L along the side
+        across, along = lens.poly_range(fixed * radial, lo, hi), lens.poly_range(t * radial, lo, hi)
+        if not (a <= across[0] and across[1] <= b and c <= along[0] and along[1] <= d):
+            raise NotProvable("the view rectangle is not proved to lie on the sensor (lens distortion)")
+
+
 def envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> Envelope:
     """The proof's envelope for this site and camera; :class:`NotProvable` says why there is none."""
     z = xyz[:, 2]
@@ -86,10 +131,12 @@ def envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_toleran
     r = float(np.max(radii))
     if near <= r:
         raise NotProvable(f"the receiver may come within {near:.2f} m of the ceiling, inside an LED's radius")
+    proved_view(camera)
     f = camera.fx_px
-    half = min(camera.cx_px, camera.width_px - camera.cx_px, camera.cy_px, camera.height_px - camera.cy_px)
-    corner = math.atan(math.hypot(max(camera.cx_px, camera.width_px - camera.cx_px),
-                                  max(camera.cy_px, camera.height_px - camera.cy_px)) / f)
+    u0, u1, v0, v1 = camera.view_px  # the sensor itself without distortion
+    cx, cy = camera.cx_px, camera.cy_px
+    half = min(cx - u0, u1 - cx, cy - v0, v1 - cy)
+    corner = math.atan(math.hypot(max(cx - u0, u1 - cx), max(cy - v0, v1 - cy)) / f)
     if camera.max_tilt_rad + corner >= math.pi / 2:
         raise NotProvable(f"tilt {math.degrees(camera.max_tilt_rad):.1f} deg + corner angle "
                           f"{math.degrees(corner):.1f} deg reaches the horizon")

@@ -3,7 +3,8 @@
 **Empty-triangle rule.** If three LEDs ``a, b, c`` are a window at some pose, no other
 LED of the same height and no larger disc lies in their closed triangle. Proof: such
 an LED's disc lies in the convex hull of the three discs, whose image (a convex set:
-the hull is in front of the camera) lies in the image, so it is wholly in view; and
+the hull is in front of the camera) lies in the image, so it is wholly in view (through a
+lens: ideal images and the view rectangle, both convex; docs/verification.md); and
 the ceiling points whose image is within a distance of the image centre fill an
 ellipse (a plane section of the cone of those rays, bounded while the largest tilt
 plus the corner angle stays under 90 deg), so by strict convexity that LED is nearer

@@ -148,7 +148,11 @@ def flatness(p: np.ndarray) -> np.ndarray:
 
 
 def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
-    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre."""
+    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre.
+
+    Through a distorting lens "fully seen" is inside ``camera.view_px`` and "nearest" is by the ray
+    angle from the optical axis (ideal pixels from :func:`planner.camera.project_discs`; docs/verification.md).
+    """
     n = len(xyz)
     k = min(CANDIDATES, n)
     tree = cKDTree(xyz[:, :2])

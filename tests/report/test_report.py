@@ -136,7 +136,7 @@ def test_html_report_renders_in_chromium_with_every_image(site, tmp_path):
     assert seen["broken"] == [] and seen["errors"] == []
     assert seen["images"] == 5  # map, coverage, error, timing, route
     assert seen["headings"] == ["Summary", "Site map", "Coverage", "Expected positioning error", "Frame timing",
-                                "Walking route", "ID bill", "Installers' checklist"]
+                                "Walking route", "Error budget", "ID bill", "Installers' checklist"]
     shot = (tmp_path / "report.png").read_bytes()
     assert shot[:8] == b"\x89PNG\r\n\x1a\n" and len(shot) > 20_000
     assert text.count('class="status-not-flashed"') == 32
@@ -167,8 +167,8 @@ def test_pdf_report_renders_every_page(site, tmp_path):
     import matplotlib.image as mpimg
 
     pngs = render_pdf(site / "plan" / "site-report.pdf", tmp_path)
-    # title, 5 figures, the bill (1 page for 8 IDs) and the checklist (1 page for 32 stops)
-    assert len(pngs) == 8
+    # title, 5 figures, the error budget, the bill (1 page for 8 IDs) and the checklist (1 page for 32 stops)
+    assert len(pngs) == 9
     for png in pngs:
         ink = mpimg.imread(png)[..., :3].mean(axis=2) < 0.5
         assert ink.mean() > 0.001, f"{png.name} is blank"
@@ -195,7 +195,7 @@ def test_vlp_report_shows_the_flashing_status(site, tmp_path, monkeypatch, capsy
     seen = open_in_chromium(plan / "site-report.html", tmp_path / "flashed.png")
     assert seen["broken"] == [] and seen["errors"] == []
     (tmp_path / "pages").mkdir()
-    assert len(render_pdf(plan / "site-report.pdf", tmp_path / "pages")) == 8
+    assert len(render_pdf(plan / "site-report.pdf", tmp_path / "pages")) == 9
     assert not list(plan.glob(".site-report*"))  # no temporary files left behind
 
 

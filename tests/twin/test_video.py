@@ -109,7 +109,7 @@ def test_a_bay_plan_records_k_and_single_frame_is_said(bay, tmp_path):
 def test_the_twin_reads_ids_over_three_video_frames(bay):
     """30 covered poses of the bay, each rendered as 3 consecutive frames at 30 fps and read by stitching.
 
-    Measured (seed 0): every pose reads at least 3 IDs right, 231 of 231 LEDs found read right (49 of them
+    Measured (seed 0): every pose reads at least 3 IDs right, 231 of 231 LEDs found read right (60 of them
     only by stitching), none misread; 29 of 30 located, the other fails later, at identification."""
     twin = Twin.from_plan(load_plan(bay[1]))
     assert twin.video is not None and twin.video.frames == 3
