@@ -157,3 +157,9 @@ MAX_POSES_PER_M2 = 20_000.0
 
 MAX_TIME_LIMIT_S = 86_400.0
 """Longest search budget ``--time-limit`` accepts [deterministic s]: a day."""
+
+COVERAGE_GOAL = 0.9
+"""Default share of sampled poses a site should decode at (``vlp-plan --coverage-goal``, planner.advice)."""
+
+USABLE_COVERAGE = 0.5
+"""Below this share of decodable sampled poses a plan is reported NOT USABLE (and vlp-plan exits 3)."""

@@ -9,7 +9,7 @@ from enum import IntEnum
 
 
 class ExitCode(IntEnum):
-    """What a ``vlp-*`` command's exit status means (the same for all ten)."""
+    """What a ``vlp-*`` command's exit status means (the same for every command)."""
 
     OK = 0
     INPUT = 1

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.advice import COVERAGE_GOAL, Site, advise
 from planner.budget import plan_sample_per_m2
 from planner.camera import Camera
 from planner.codes.assignment import assign_paper
@@ -38,7 +39,15 @@ from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.verify.proof import prove_window_set
-from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound
+from planner.verify.verify import (
+    AMBIGUOUS,
+    TOO_FEW,
+    Verification,
+    check_window_set,
+    classify,
+    observe_poses,
+    side_bound,
+)
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
 
 LAYOUT_SUFFIXES = (".dxf", ".ifc", ".yaml", ".yml", ".csv")
@@ -83,6 +92,7 @@ class PlanOptions:
     video_fps: float = VIDEO_FPS
     max_video_frames: int = MAX_VIDEO_FRAMES
     mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
+    coverage_goal: float = COVERAGE_GOAL
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -271,7 +281,13 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
                                  per_m2=options.error_poses_per_m2, seed=options.seed, terms=options.error_terms,
                                  sample=sample)
-    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, receiver)
+    advice = None
+    if verification is not None:
+        filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
+        share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
+        advice = advise(Site(xyz, radii, layout.outline, cam, filled=filled), verification.coverage, *share,
+                        goal=options.coverage_goal, seed=options.seed)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
 
 
 def default_outdir(layout_path: str | Path) -> Path:

@@ -17,6 +17,7 @@ import yaml
 from planner import __version__
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
+    from planner.advice import Advice
     from planner.camera import Camera
     from planner.codes.assignment import Assignment
     from planner.codes.check_bits import CheckCode
@@ -44,6 +45,7 @@ class Plan:
     check: CheckCode | None = None
     accuracy: SiteAccuracy | None = None
     modulation: Modulation | None = None
+    advice: Advice | None = None
     receiver: ReceiverChoice | None = None
 
     def entries(self) -> list[dict]:
@@ -116,6 +118,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
         "camera": plan.camera.to_dict(),
         "verification": (plan.verification.summary([lum.name for lum in lay.luminaires])
                          if plan.verification is not None else None),
+        "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),

@@ -184,6 +184,42 @@ class Accuracy(_Section):
     dominant: Text | None = None
 
 
+Share = Annotated[Finite, Field(ge=0, le=1)]
+
+
+class AdviceChange(_Section):
+    """One row of the site advice: the change, the vlp-plan flags that apply it, its sampled coverage."""
+
+    change: Text
+    flags: list[Text] = []
+    applicable_by_flags: bool = False
+    camera: dict[str, Any] | None = None
+    coverage: Share
+    reaches_goal: bool
+
+
+class Advice(_Section):
+    """The site advice (``docs/advice.md``): the goal, whether the plan is usable, and the changes tried."""
+
+    goal: Share
+    usable_from: Share
+    usable: bool
+    coverage: Share
+    too_few_leds: Share = 0.0
+    ambiguous: Share = 0.0
+    meets_goal: bool
+    poses_per_candidate: Count
+    baseline: Share
+    changes: list[AdviceChange] = []
+    recommended: Annotated[int, Field(ge=0)] | None = None
+
+    @model_validator(mode="after")
+    def _recommended_is_a_row(self) -> Advice:
+        if self.recommended is not None and self.recommended >= len(self.changes):
+            raise ValueError(f"advice.recommended {self.recommended} names no row of advice.changes")
+        return self
+
+
 class PlanFile(_Section):
     """A ``plan.yaml`` as the stages after ``vlp-plan`` read it; arrays are in luminaire order."""
 
@@ -197,6 +233,7 @@ class PlanFile(_Section):
     receiver: dict[str, Any] | None = None
     camera: CameraFields = CameraFields()
     verification: Verification | None = None
+    advice: Advice | None = None
     modulation: ModulationFields | None = None
     accuracy: Accuracy | None = None
     outline: list[tuple[Coordinate, Coordinate]] | None = None

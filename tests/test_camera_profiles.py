@@ -75,16 +75,38 @@ def test_vlp_plan_lists_the_cameras_without_a_layout(tmp_path):
 
 def test_vlp_plan_and_verify_take_a_profile_by_name(tmp_path):
     out = tmp_path / "out"
-    quick = ["--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0", "--poses-per-m2", "50"]
+    quick = ["--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0", "--poses-per-m2", "20"]
     done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--camera", "wide",
                            *quick], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     camera = yaml.safe_load((out / "plan.yaml").read_text())["camera"]
     assert camera["name"] == "wide" and camera["distortion"][:2] == [-0.08, 0.02] and camera["fx_px"] == 2561.2
-    verify = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "ultrawide", "--poses-per-m2", "50",
+    verify = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "main", "--poses-per-m2", "20",
                              "--json"], capture_output=True, text=True, timeout=120)
     assert verify.returncode in (0, 3), verify.stderr
     refused = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "iphone"], capture_output=True,
                              text=True, timeout=60)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1
     assert "--camera iphone: no such camera profile or file; profiles: paper, main" in refused.stderr
+
+
+def test_docs_list_every_profile_with_its_figures_and_the_example_file_reads(tmp_path):
+    from planner.camera_file import read_camera
+
+    text = (ROOT / "docs" / "camera.md").read_text()
+    table = text[text.index("## Profiles"):text.index("## Calibration")]
+    rows = {}
+    for line in table.splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if line.startswith("| `") and len(cells) == 7:
+            rows[cells[0].split("`")[1]] = cells
+    assert set(rows) == set(PROFILES)
+    for name, cells in rows.items():
+        cam = PROFILES[name].camera
+        assert cells[1] == cam.lens and cells[2] == f"{cam.width_px} x {cam.height_px}"
+        assert float(cells[3]) == pytest.approx(cam.fx_px, abs=0.05)
+        assert float(cells[4].split()[0]) == pytest.approx(math.degrees(cam.hfov_rad), abs=0.05)
+        assert float(cells[6].split()[0]) == pytest.approx(1e6 * cam.row_time_s)
+    example = tmp_path / "phone.yaml"
+    example.write_text(text.split("```yaml\n")[1].split("```")[0])
+    assert read_camera(example).distorted

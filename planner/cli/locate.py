@@ -1,8 +1,9 @@
-"""``vlp-locate PLAN OBSERVATION.json``: a receiver's position from the LED ellipses it saw.
+"""``vlp-locate PLAN OBSERVATION.json`` or ``--image PHOTO``: a receiver's position from the LEDs it saw.
 
 Prints JSON: position [m], method, RMS ellipse residual [px], the luminaires used and
-the camera's orientation. ``--simulate`` writes the observation a pose would give
-instead (the receiver twin's reference output). Exit codes: 0 position found,
+the camera's orientation. ``--image`` decodes a phone photo first (:mod:`planner.photo`;
+with ``--json`` every LED blob found is listed, read or not). ``--simulate`` writes the
+observation a pose would give instead (the receiver twin's reference output). Exit codes: 0 position found,
 3 no trustworthy position (too few or collinear LEDs, no pose explains the image,
 two places fit), 1 bad input (unreadable file, ID not in the plan), 2 usage.
 """
@@ -30,12 +31,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(
         prog="vlp-locate",
         description="Locate a receiver on a planned site from the LED ellipses it saw (IDs decoded, ellipses "
-        "fitted; format in docs/positioning.md). Luminaires are identified from the plan as the receiver would.",
+        "fitted; format in docs/positioning.md), or from a phone photo of the ceiling (--image; docs/photos.md). "
+        "Luminaires are identified from the plan as the receiver would.",
         epilog="Exit codes: 0 position found, 3 no trustworthy position, 1 bad input, 2 usage error.",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan")
     p.add_argument("observation", metavar="OBSERVATION.json", nargs="?",
                    help="the receiver's camera and LED ellipses (JSON)")
+    p.add_argument("--image", metavar="PHOTO",
+                   help="instead of OBSERVATION.json, a photo of the ceiling (JPEG or PNG, as the phone saved it): "
+                   "every LED blob is found and decoded, then located (docs/photos.md)")
+    p.add_argument("--camera", metavar="NAME|YAML",
+                   help="with --image: the camera that took the photo, a profile name or camera file (docs/camera.md); "
+                   "default: the plan's camera")
     p.add_argument("--method", choices=list(LOCATE_METHODS), default="perspective",
                    help="perspective: exact pose fit over every LED (default); paper: the paper's weak-perspective "
                    "distances and trilateration (Eq. 1-14)")
@@ -47,7 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise-px", type=cli.non_negative_float, default=NOISE_PX, metavar="PX",
                    help=f"with --simulate: edge-point noise [px] (default {NOISE_PX:g}; 0 gives exact ellipses)")
     p.add_argument("--seed", type=cli.seed, default=0, help="with --simulate: noise seed (default 0)")
-    cli.common_flags(p, "the output is JSON with or without it (accepted, as on every command)")
+    cli.common_flags(p, "with --image: add every LED blob found (ellipse, stripe period, ID or why none), also "
+                     "when no position is found; otherwise the output is JSON with or without it")
     return p
 
 
@@ -81,7 +90,7 @@ def simulate(plan: PlanFile, pose: str, noise_px: float, seed: int) -> dict:
     return snapshot_document(Snapshot(camera, [int(site.ids[k]) for k in seen.index], seen.ellipses, gravity))
 
 
-def result_document(site: Site, snap: Snapshot, found, max_residual_px: float = MAX_RESIDUAL_PX) -> dict:
+def result_document(site: Site, snap: Snapshot | None, found, max_residual_px: float = MAX_RESIDUAL_PX) -> dict:
     from planner.positioning.fix import angles_of
 
     fix = found.fix
@@ -103,12 +112,19 @@ def main(argv: list[str] | None = None) -> int:
     from planner.positioning.locate import Site, locate
     from planner.positioning.snapshot_file import read_snapshot
 
+    if args.image and (args.observation or args.simulate):
+        raise UsageError("--image locates a photo: give it without OBSERVATION.json and --simulate")
+    if args.camera and not args.image:
+        raise UsageError("--camera goes with --image (an observation file carries its own camera)")
     plan = load_plan(args.plan)
     if args.simulate:
         print(json.dumps(simulate(plan, args.simulate, args.noise_px, args.seed), indent=2))
         return 0
+    if args.image:
+        return locate_image(plan, args)
     if not args.observation:
-        raise UsageError("give an OBSERVATION.json to locate, or --simulate a pose (see vlp-locate --help)")
+        raise UsageError("give an OBSERVATION.json or --image PHOTO to locate, or --simulate a pose "
+                         "(see vlp-locate --help)")
     site, snap = Site.from_plan(plan), read_snapshot(args.observation)
     found = locate(site, snap, args.method, args.max_residual_px)
     result = result_document(site, snap, found, args.max_residual_px)
@@ -117,6 +133,37 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vlp-locate: warning: the {args.method} method's position leaves {result['residual_px']:g} px RMS "
               f"(limit {args.max_residual_px:g} px): no orientation at this position explains the image; "
               "expect an error of centimetres or more (the perspective method fits it exactly)", file=sys.stderr)
+    return 0
+
+
+def locate_image(plan: PlanFile, args: argparse.Namespace) -> int:
+    """``--image``: decode the photo, locate it, print the result (with ``--json``, every blob)."""
+    from planner.errors import PositioningError
+    from planner.photo.asbuilt import blob_documents, locate_photo
+    from planner.photo.read import photo_blobs
+    from planner.positioning.locate import Site
+    from planner.twin.receiver import FrameFormat
+
+    camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
+    site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
+    blobs = photo_blobs(args.image, camera, fmt)
+    fix = locate_photo(site, blobs, camera, args.method, args.max_residual_px)
+    doc: dict = result_document(site, None, fix.located, args.max_residual_px) if fix.located else {
+        "position_m": None, "problem": fix.problem}
+    if args.json:
+        doc["photo"] = {"file": args.image, "camera": camera.name or None, "width_px": camera.width_px,
+                        "height_px": camera.height_px,
+                        "rows_per_chip": round(1 / (fmt.chip_rate_hz * camera.row_time_s), 3),
+                        "blobs": blob_documents(site, blobs, fix)}
+    if fix.located is None and not args.json:
+        raise PositioningError(f"{args.image}: {fix.problem} (--json lists every blob and why)")
+    print(json.dumps(doc, indent=2))
+    if fix.located is None:
+        raise PositioningError(f"{args.image}: {fix.problem}")
+    wrong = [b for b in blob_documents(site, blobs, fix) if b.get("verdict") == "wrong"]
+    for b in wrong:
+        print(f"vlp-locate: warning: luminaire {b['luminaire']} plays ID {b['id']}, planned {b['planned_id']}; "
+              "located on the others (vlp-report --photos checks a site)", file=sys.stderr)
     return 0
 
 

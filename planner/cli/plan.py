@@ -11,6 +11,7 @@ from pathlib import Path
 from planner import __version__
 from planner.cli import common as cli
 from planner.defaults import (
+    COVERAGE_GOAL,
     DRIVER_MAX_HZ,
     ERROR_POSES_PER_M2,
     LINE_CODE_NAMES,
@@ -28,9 +29,6 @@ from planner.defaults import (
 )
 from planner.errors import ExitCode, UsageError
 
-LOW_COVERAGE = 0.5
-"""Below this share of decodable poses, vlp-plan warns that the site is poorly covered."""
-
 
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(
@@ -41,7 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
         "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
-        "sampled pose is ambiguous (only with an explicit --scheme). Docs: docs/cli.md.",
+        "sampled pose is ambiguous (only with an explicit --scheme), or the plan is NOT USABLE (under 50 %% of "
+        "sampled poses decode; --allow-unusable exits 0). Docs: docs/cli.md.",
     )
     p.add_argument("layout", metavar="LAYOUT", nargs="?",
                    help="drawing or layout file: .dxf, .ifc, .yaml/.yml or .csv")
@@ -68,6 +67,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
                    "detected (default 1: no check bits)")
     cli.add_verify_flags(p)
+    g = p.add_argument_group("advice")
+    g.add_argument("--coverage-goal", type=cli.at_most(100.0), default=100 * COVERAGE_GOAL, metavar="PCT",
+                   help="share of sampled poses that should decode, in percent (default %(default)g); below it the "
+                   "summary and the site report show which changes would reach it (sampled)")
+    g.add_argument("--allow-unusable", action="store_true",
+                   help="exit 0 even when the plan is NOT USABLE (under 50 %% of sampled poses decode)")
     g = p.add_argument_group("modulation")
     g.add_argument("--line-code", choices=list(LINE_CODE_NAMES), default="manchester",
                    help="line code of the frames: manchester (2 chips per bit, runs <= 3) or 4b6b (IEEE 802.15.7, "
@@ -143,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
                                          args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
-                                         mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver))
+                                         mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
+                                         coverage_goal=args.coverage_goal / 100))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
@@ -175,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
         "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": "three"},
+        "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
@@ -186,11 +193,12 @@ def main(argv: list[str] | None = None) -> int:
     else:
         _print_summary(summary)
     v = plan.verification
-    if v is not None and v.coverage < LOW_COVERAGE:
-        few = 2 if plan.receiver is not None and plan.receiver.mode == "gravity" else 3
-        print(f"vlp-plan: warning: only {100 * v.coverage:.1f} % of sampled poses decode "
-              f"({v.count(3)} of {v.poses} see fewer than {few} whole LEDs): the luminaires may be too far apart "
-              "for this camera; see coverage.png", file=sys.stderr)
+    unusable = plan.advice is not None and not plan.advice.usable
+    few = 2 if plan.receiver is not None and plan.receiver.mode == "gravity" else 3
+    if v is not None and unusable:
+        print(f"vlp-plan: plan written, but NOT USABLE: only {100 * v.coverage:.1f} % of sampled poses decode "
+              f"({v.count(3)} of {v.poses} see fewer than {few} whole LEDs); see the advice in the summary and "
+              "the site report", file=sys.stderr)
     if v is not None and v.conflicts:
         print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
               "scheme; see coverage.png and vlp-verify", file=sys.stderr)
@@ -204,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
               + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
               file=sys.stderr)
         return ExitCode.CHECK_FAILED
-    return ExitCode.OK
+    return ExitCode.CHECK_FAILED if unusable and not args.allow_unusable else ExitCode.OK
 
 
 def _print_summary(s: dict) -> None:
@@ -223,6 +231,8 @@ def _print_summary(s: dict) -> None:
     if s["check_distance"] > 1:
         print(f"  check    sent as {s['word_bits']}-bit codewords ({s['word_bits'] - s['bits']} check bits, "
               f"Hamming distance {s['check_distance']}: up to {s['check_distance'] - 1} misread bits detected)")
+    advice = s["advice"]
+    usable = advice is None or advice["usable"]
     if s["schemes_considered"] and len(s["schemes_considered"]) > 1:
         parts = []
         for name, c in s["schemes_considered"].items():
@@ -230,7 +240,7 @@ def _print_summary(s: dict) -> None:
             amb = c["ambiguous_poses"]
             clash = c.get("window_set_conflicts")
             state = ("not verified" if amb is None else f"{amb} ambiguous poses" if amb else
-                     f"{clash} triangles read alike" if clash else "verified")
+                     f"{clash} triangles read alike" if clash else "verified" if usable else "unambiguous")
             parts.append(f"{name} {c['bits']} bits ({100 * eff:.0f} %, {state})")
         print(f"  schemes  {'; '.join(parts)}; naive {s['naive_bits']} bits")
     r = s["receiver"]
@@ -240,7 +250,12 @@ def _print_summary(s: dict) -> None:
               f"{100 * r['poses_seeing']['exactly_one_led']:.1f} % of poses see exactly one whole LED")
     v = s["verification"]
     if v:
-        print(f"  verify   {cli.verification_line(v)}")
+        line = cli.verification_line(v)
+        if not usable and line.endswith(": proved"):
+            line += f" (but only {100 * v['coverage']:.1f} % of sampled poses see a window: not an endorsement)"
+        print(f"  verify   {line}")
+    if advice:
+        _print_advice(advice)
     m = s["modulation"]
     if m:
         print(f"  frame    {m['line_code']}, {m['frame_chips']} chips at {m['chip_rate_hz'] / 1e3:g} kHz "
@@ -268,6 +283,19 @@ def _print_summary(s: dict) -> None:
                   f"alone: {alone}; {TERM_NAMES[a['dominant']]} dominates")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
 
+
+
+def _print_advice(a: dict) -> None:
+    from planner.advice import table, verdict
+
+    print(f"  verdict  {verdict(a)}")
+    if a["changes"]:
+        print(f"  advice   what would reach {100 * a['goal']:.0f} % (sampled: {a['poses_per_candidate']} poses each, "
+              "share that see three whole LEDs):")
+        rows = table(a)
+        w = max(len(r[0]) for r in rows)
+        for change, cov, remark in rows:
+            print(f"           {change:<{w}}  {cov:>7}  {remark}".rstrip())
 
 
 def _list_cameras(as_json: bool) -> int:

@@ -2,7 +2,9 @@
 
 ``vlp-plan`` writes ``site-report.html`` and ``site-report.pdf`` with every
 driver "not flashed"; after (or during) flashing, this command rewrites them
-from ``plan.yaml``, the maps beside it and ``as-built.json``.
+from ``plan.yaml``, the maps beside it and ``as-built.json``. With ``--photos DIR``
+it adds the as-built check: each site photo in DIR is decoded and located, and the
+luminaires seen are marked playing their planned ID or a wrong one (docs/photos.md).
 """
 
 from __future__ import annotations
@@ -10,10 +12,13 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from planner.cli import common as cli
 from planner.errors import ExitCode, UsageError
+
+if TYPE_CHECKING:
+    from planner.plan_file import PlanFile
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,14 +26,22 @@ def build_parser() -> argparse.ArgumentParser:
         prog="vlp-report",
         description="Rebuild a plan's site report (site-report.html, self-contained, and site-report.pdf): "
         "summary, site map, coverage, expected error, frame timing, walking route, ID bill and the installers' "
-        "checklist with each driver's flashing status from the as-built journal.",
-        epilog="Exit codes: 0 report written, 1 bad input, 2 usage error.",
+        "checklist with each driver's flashing status from the as-built journal; with --photos, the as-built "
+        "check of which luminaires play their planned ID.",
+        epilog="Exit codes: 0 report written, 3 report written but --photos shows a luminaire playing a wrong ID, "
+        "1 bad input, 2 usage error.",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan; its maps are read from beside it")
     p.add_argument("--journal", metavar="JSON",
                    help="as-built journal written by vlp-flash (default: as-built.json beside PLAN, if present)")
+    p.add_argument("--photos", metavar="DIR",
+                   help="as-built check: decode and locate every photo (.jpg, .jpeg, .png) in DIR and mark the "
+                   "luminaires seen playing their planned ID or a wrong one (docs/photos.md)")
+    p.add_argument("--camera", metavar="NAME|YAML",
+                   help="with --photos: the camera that took them, a profile name or camera file (docs/camera.md); "
+                   "default: the plan's camera")
     p.add_argument("-o", "--outdir", metavar="DIR", help="where to write the report (default: PLAN's directory)")
-    cli.common_flags(p, "print what was written and the flashing counts as JSON")
+    cli.common_flags(p, "print what was written, the flashing counts and the as-built check as JSON")
     return p
 
 
@@ -50,7 +63,10 @@ def main(argv: list[str] | None = None) -> int:
     outdir = Path(args.outdir) if args.outdir else plan_path.parent
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a directory")
-    written = write_report(plan, digest, plan_path.parent, outdir, entries)
+    if args.camera and not args.photos:
+        raise UsageError("--camera goes with --photos (the camera that took them)")
+    asbuilt = photo_check(plan, args) if args.photos else None
+    written = write_report(plan, digest, plan_path.parent, outdir, entries, asbuilt)
     statuses = [s.status for s in checklist(plan, entries)]
     result: dict[str, Any] = {
         "written": [str(p) for p in written],
@@ -59,13 +75,46 @@ def main(argv: list[str] | None = None) -> int:
         "verified": statuses.count("verified"),
         "failed": statuses.count("failed"),
     }
+    if asbuilt is not None:
+        result["asbuilt"] = {k: asbuilt[k] for k in ("summary", "counts", "located_photos", "luminaires", "photos")}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
         where = f"journal {journal_path}" if entries is not None else "no journal yet"
         print(f"vlp-report: wrote {', '.join(result['written'])} ({result['verified']} of {result['luminaires']} "
               f"drivers verified, {result['failed']} failed; {where})")
-    return ExitCode.OK
+        if asbuilt is not None:
+            print(f"vlp-report: as-built check: {asbuilt['summary']}")
+    return ExitCode.CHECK_FAILED if asbuilt and asbuilt["counts"]["wrong"] else ExitCode.OK
+
+
+def photo_check(plan: PlanFile, args: argparse.Namespace) -> dict:
+    """``--photos``: decode and locate every photo in the folder; the report's as-built section."""
+    from planner.errors import InputError
+    from planner.photo.asbuilt import PhotoCheck, check_photo
+    from planner.photo.read import SUFFIXES, photo_blobs
+    from planner.positioning.locate import Site
+    from planner.report.asbuilt import asbuilt_section
+    from planner.twin.receiver import FrameFormat
+
+    folder = Path(args.photos)
+    if not folder.is_dir():
+        raise UsageError(f"--photos {folder}: no such folder; give the folder holding the site photos")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file())
+    if not files:
+        raise UsageError(f"--photos {folder}: no {', '.join(SUFFIXES)} photos in it")
+    camera = cli.camera_from_args(args) if args.camera else plan.camera_model()
+    site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
+    checks = []
+    for k, path in enumerate(files, 1):
+        cli.progress(f"photo {k} of {len(files)}: {path.name}")
+        try:
+            blobs = photo_blobs(path, camera, fmt)
+        except InputError as exc:  # one unreadable photo does not stop the check of the others
+            checks.append(PhotoCheck(path.name, [], None, str(exc)))
+            continue
+        checks.append(check_photo(site, path.name, blobs, camera))
+    return asbuilt_section(site, checks)
 
 
 def console_main(argv: list[str] | None = None) -> int:

@@ -139,6 +139,10 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
     if ver:
         rows.append(("verification", f"{100 * ver.coverage:.1f} % of {ver.poses} sampled poses decodable, "
                                      f"{ver.ambiguous} ambiguous"))
+        if plan.advice:
+            from planner.advice import verdict
+
+            rows.append(("verdict", verdict(plan.advice.model_dump())))
     else:
         rows.append(("verification", "not verified (--no-verify)"))
     if plan.receiver:  # --receiver gravity or auto: coverage per receiver mode planned
@@ -224,3 +228,26 @@ def budget_lines(rows: list[tuple[str, str, str, int, str]]) -> tuple[str, list[
 def length_text(metres: float) -> str:
     """A length for people: millimetres below 1 cm, else centimetres."""
     return f"{metres * 1e3:.2f} mm" if metres < 0.01 else f"{metres * 1e2:.1f} cm"
+
+
+@dataclass(frozen=True)
+class AdviceSection:
+    """The report's site advice: the verdict, how the figures were sampled, and the table of changes."""
+
+    verdict: str
+    note: str
+    rows: list[tuple[str, str, str]]
+
+
+def advice_section(plan: PlanFile) -> AdviceSection | None:
+    """The site advice of a verified plan (``plan.yaml``'s ``advice``), or None."""
+    from planner.advice import table, verdict
+
+    if plan.advice is None:
+        return None
+    a = plan.advice.model_dump()
+    note = (f"Changes tried to reach {100 * a['goal']:.0f} % of sampled poses, each measured on a coarse sample "
+            f"({a['poses_per_candidate']} poses, {a['poses_per_m2']:g} per m2) as the share whose camera sees three "
+            "whole, non-collinear LEDs. Sampled figures, not proved; plan the changed site to verify it."
+            if a["changes"] else "")
+    return AdviceSection(verdict(a), note, table(a) if a["changes"] else [])

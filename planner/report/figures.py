@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from planner.plot_style import png_bytes, styled
-from planner.report.content import BillLine, Stop
+from planner.report.content import AdviceSection, BillLine, Stop
 
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
@@ -53,7 +53,12 @@ def timing_examples(plan: PlanFile, route: np.ndarray) -> list[Entry]:
 
 @styled
 def timing_diagram(mod: ModulationFields, examples: list[Entry]) -> bytes:
-    """PNG: each example's LED drive (on/off) over a few frames, preamble shaded, with the smallest LED image's span.
+    """PNG of :func:`timing_figure`."""
+    return png_bytes(timing_figure(mod, examples))
+
+
+def timing_figure(mod: ModulationFields, examples: list[Entry]):
+    """Each example's LED drive (on/off) over a few frames, preamble shaded, with the smallest LED image's span.
 
     Time runs left to right in milliseconds; phases are aligned for reading (on
     site every driver starts at its own phase, and the receiver finds the
@@ -89,12 +94,17 @@ def timing_diagram(mod: ModulationFields, examples: list[Entry]) -> bytes:
     ax.set_ylabel("LED drive per luminaire (high = on)")
     ax.set_title(f"LED drive: {mod.line_code} at {mod.chip_rate_hz:g} chips/s, {mod.frame_chips} chips "
                  f"per frame ({mod.frame_period_s * 1e3:.3f} ms), preamble {mod.preamble}")
-    return png_bytes(fig)
+    return fig
 
 
 @styled
 def route_figure(plan: PlanFile, route: np.ndarray) -> bytes:
-    """PNG: the installers' serpentine route over the luminaires, with stop numbers."""
+    """PNG of :func:`route_fig`."""
+    return png_bytes(route_fig(plan, route))
+
+
+def route_fig(plan: PlanFile, route: np.ndarray):
+    """The installers' serpentine route over the luminaires, with stop numbers."""
     import matplotlib.pyplot as plt
 
     xy = plan.xy
@@ -119,28 +129,43 @@ def route_figure(plan: PlanFile, route: np.ndarray) -> bytes:
     ax.set_title(f"Walking route: {len(path)} stops, rows by y, alternating direction"
                  + ("" if step == 1 else f" (every {step}th stop numbered)"))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, frameon=False)
-    return png_bytes(fig)
+    return fig
 
 
-def bill_lines(bill: list[BillLine], width: int = LINE_CHARS - 10) -> tuple[str, list[str]]:
-    """The ID bill as a header and fixed-width text lines (luminaire names wrapped)."""
-    header = f"{'ID':>4}  {'class':<8} {'count':>5}  luminaires (in walking order)"
+def bill_lines(bill: list[BillLine], width: int = LINE_CHARS - 10, *, show_class: bool = True) -> tuple[str, list[str]]:
+    """The ID bill as a header and fixed-width text lines (luminaire names wrapped); the odd/even class
+    column only with ``show_class`` (the paper's scheme)."""
+    cls = (lambda text: f"{text:<8} ") if show_class else (lambda text: "")
+    header = f"{'ID':>4}  {cls('class')}{'count':>5}  luminaires (in walking order)"
+    indent = 14 + len(cls(""))
     lines = []
     for b in bill:
-        names = textwrap.wrap(" ".join(b.luminaires), width - 23) or [""]
-        lines.append(f"{b.id:>4}  {b.parity:<8} {b.count:>5}  {names[0]}")
-        lines += [" " * 23 + n for n in names[1:]]
+        names = textwrap.wrap(" ".join(b.luminaires), width - indent) or [""]
+        lines.append(f"{b.id:>4}  {cls(b.parity)}{b.count:>5}  {names[0]}")
+        lines += [" " * indent + n for n in names[1:]]
     return header, lines
 
 
-def checklist_lines(stops: list[Stop]) -> tuple[str, list[str]]:
-    """The checklist as a header and fixed-width text lines, one per stop, with a tick box."""
+def checklist_lines(stops: list[Stop], *, show_class: bool = True) -> tuple[str, list[str]]:
+    """The checklist as a header and fixed-width text lines, one per stop, with a tick box; the odd/even
+    class column only with ``show_class``."""
     w = max([len(s.name) for s in stops] + [9])
+    cls = (lambda text: f"{text:<5} ") if show_class else (lambda text: "")
     header = (f"done  {'stop':>4} {'row':>3}  {'luminaire':<{w}}  {'x [m]':>8} {'y [m]':>8}  {'ID':>4}  "
-              f"{'class':<5} {'region':>6}  flashing")
+              f"{cls('class')}{'region':>6}  flashing")
     lines = [f"[  ]  {s.number:>4} {s.row:>3}  {s.name:<{w}}  {s.x_m:>8.2f} {s.y_m:>8.2f}  {s.id:>4}  "
-             f"{s.parity:<5} {s.region:>6}  {s.status}{': ' + s.detail if s.detail else ''}" for s in stops]
+             f"{cls(s.parity)}{s.region:>6}  {s.status}{': ' + s.detail if s.detail else ''}" for s in stops]
     return header, [line if len(line) <= LINE_CHARS else line[:LINE_CHARS - 1] + "…" for line in lines]
+
+
+def advice_lines(advice: AdviceSection) -> tuple[str, list[str]]:
+    """The site advice as a header and fixed-width text lines: verdict, note, then the table."""
+    w = max([len(r[0]) for r in advice.rows] + [6])
+    lines = [*textwrap.wrap(advice.note, LINE_CHARS - 10), ""]
+    if advice.rows:
+        lines += [f"{'change':<{w}}  {'coverage':>8}  remark"]
+        lines += [f"{c:<{w}}  {v:>8}  {r}"[:LINE_CHARS] for c, v, r in advice.rows]
+    return advice.verdict, lines
 
 
 CORE_FONTS: dict[RcKeyType, Any] = {"pdf.use14corefonts": True, "font.family": "monospace", "font.monospace": ["Courier"],
@@ -199,9 +224,10 @@ def _image_page(pdf, title: str, png: bytes | None, missing: str) -> None:
 @styled
 def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[str, str]], sections: list[tuple[str, bytes | None, str]],
               bill: tuple[str, list[str]], checklist: tuple[str, list[str]],
-              budget: tuple[str, list[str]] | None = None) -> None:
-    """Write the report as PDF: a title page with the summary, one page per figure, the error budget (if any),
-    then the bill and checklist."""
+              budget: tuple[str, list[str]] | None = None, advice: tuple[str, list[str]] | None = None,
+              asbuilt: tuple[str, list[str]] | None = None) -> None:
+    """Write the report as PDF: a title page with the summary, the site advice (if any), one page per figure, the
+    error budget (if any), then the bill and checklist (and the as-built photo check, if given)."""
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
@@ -217,9 +243,13 @@ def write_pdf(path: str | Path, title: str, subtitle: str, summary: list[tuple[s
             y -= 0.055 + 0.026 * (len(wrapped) - 1)
         pdf.savefig(fig)
         plt.close(fig)
+        if advice is not None:
+            _text_pages(pdf, "Site advice", *advice)
         for name, png, missing in sections:
             _image_page(pdf, name, png, missing)
         if budget is not None:
             _text_pages(pdf, "Error budget: each term alone, then all together", *budget)
         _text_pages(pdf, "ID bill", *bill)
         _text_pages(pdf, "Installers' checklist", *checklist)
+        if asbuilt:
+            _text_pages(pdf, "As-built check", *asbuilt)

@@ -1,12 +1,16 @@
 """A PNG map of a plan: checkerboard classes, IDs and regions.
 
-Readable in grayscale: odd luminaires are filled, even ones hollow; regions
-are shaded alternately behind them and labelled. Rendering is deterministic
+Readable in grayscale: under the paper's scheme odd luminaires are filled, even
+ones hollow (the classes mean nothing under the other schemes, which draw all
+alike); regions are shaded alternately behind them and labelled in the gaps
+between luminaires, never over an ID. Every text stays inside the canvas
+(constrained layout, legends below the axes). Rendering is deterministic
 (no timestamp or version in the PNG metadata).
 """
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -23,6 +27,10 @@ LABEL_LIMIT = 2000
 """Above this many luminaires, IDs are not written on the map (unreadable)."""
 
 
+PAD_IN = 0.1
+"""Margin the constrained layout keeps between any text and the canvas edge [inch]."""
+
+
 def _region_colours(edges: np.ndarray, regions: np.ndarray) -> np.ndarray:
     """A shade index (0-3) per luminaire such that neighbouring regions differ where possible."""
     import networkx as nx
@@ -36,63 +44,94 @@ def _region_colours(edges: np.ndarray, regions: np.ndarray) -> np.ndarray:
     return np.array([colour[int(r)] % 4 for r in regions])
 
 
-@styled
-def render_map(plan: Plan, path: str | Path) -> None:
-    """Write the plan's map as PNG to ``path``."""
+def _region_label_points(xy: np.ndarray, regions: np.ndarray, pitch: float) -> np.ndarray:
+    """Where each region's label goes: the free point (a corner of a luminaire's cell, farthest from every
+    luminaire) nearest the region's centre, so that no label sits on a luminaire or its ID."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(xy)
+    corners = np.array([(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]) * pitch
+    out = []
+    for r in range(int(regions.max()) + 1):
+        members = xy[regions == r]
+        centre = members.mean(axis=0)
+        cand = (members[:, None, :] + corners[None]).reshape(-1, 2)
+        free = np.asarray(tree.query(cand)[0])
+        best = cand[free >= free.max() - 1e-9]
+        out.append(best[np.argmin(np.hypot(*(best - centre).T))])
+    return np.array(out)
+
+
+def map_figure(plan: Plan):
+    """The plan's map as a matplotlib figure (text kept inside the canvas; labels off the luminaires)."""
+    from matplotlib.collections import LineCollection, PatchCollection
+    from matplotlib.patches import Rectangle
+
     xy = plan.layout.xy
     ids, regions, odd = plan.assignment.ids, plan.assignment.regions, plan.graph.odd
+    paper = plan.assignment.scheme == "paper"  # odd/even classes mean something only under the paper's code
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     lengths = [d["length"] for *_, d in plan.graph.graph.edges(data=True)]
     pitch = float(np.median(lengths)) if lengths else 1.0
     pad = max(pitch, 0.5)
     span = np.maximum(hi - lo + 2 * pad, 1.0)
     inch_per_m = min(16.0 / span[0], 12.0 / span[1], 1.5)
-    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 1.2), max(4.5, span[1] * inch_per_m + 1.2)), dpi=110)
+    width_in = max(6.0, span[0] * inch_per_m + 1.2)
+    fig, ax = plt.subplots(figsize=(width_in, max(4.5, span[1] * inch_per_m + 1.6)), dpi=110,
+                           )
+    fig.set_layout_engine("constrained", w_pad=PAD_IN, h_pad=PAD_IN)
     n_regions = int(regions.max()) + 1
     # Regions: a pitch-sized cell behind each luminaire, shaded by region, so groups tile.
-    from matplotlib.collections import LineCollection, PatchCollection
-    from matplotlib.patches import Rectangle
-
     shades = np.array([0.95, 0.84, 0.90, 0.78])[_region_colours(plan.graph.edges, regions)]
     cells = [Rectangle((x - pitch / 2, y - pitch / 2), pitch, pitch) for x, y in xy]
     ax.add_collection(PatchCollection(cells, facecolors=[str(v) for v in shades], edgecolors="none", zorder=0))
-    for r in range(n_regions):
-        cx, cy = xy[regions == r].mean(axis=0)
-        ax.text(cx, cy, f"R{r}", fontsize=12, color="0.2", ha="center", va="center", zorder=5, weight="bold",
-                bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.8, "edgecolor": "0.5"})
+    marker_pt = max(2.0, 0.7 * pitch * inch_per_m * 72)  # marker diameter [pt]
+    free_pt = (0.707 - 0.35) * pitch * inch_per_m * 72  # from a cell corner to the nearest marker's rim [pt]
+    label_pt = min(12.0, 0.8 * free_pt)
+    if label_pt >= 4.0:
+        for r, (cx, cy) in enumerate(_region_label_points(xy, regions, pitch)):
+            ax.text(cx, cy, f"R{r}", fontsize=label_pt, color="0.2", ha="center", va="center", zorder=5,
+                    weight="bold", gid="region", bbox={"boxstyle": "round,pad=0.15", "facecolor": "white",
+                                                        "alpha": 0.8, "edgecolor": "0.5"})
     edges = plan.graph.edges
     if len(edges):
         segs = np.stack([xy[edges[:, 0]], xy[edges[:, 1]]], axis=1)
         ax.add_collection(LineCollection(list(segs), colors="0.6", linewidths=0.5, zorder=2))
-    marker_pt = max(2.0, 0.7 * pitch * inch_per_m * 72)  # marker diameter [pt]
-    paper = plan.assignment.scheme == "paper"
-    ax.scatter(xy[odd, 0], xy[odd, 1], s=marker_pt**2, c="0.15", edgecolors="black", zorder=3,
-               label="odd class" + (" (odd IDs)" if paper else ""))
-    ax.scatter(xy[~odd, 0], xy[~odd, 1], s=marker_pt**2, c="white", edgecolors="black", zorder=3,
-               label="even class" + (" (even IDs)" if paper else ""))
+    if paper:
+        ax.scatter(xy[odd, 0], xy[odd, 1], s=marker_pt**2, c="0.15", edgecolors="black", zorder=3,
+                   label="odd class (odd IDs)")
+        ax.scatter(xy[~odd, 0], xy[~odd, 1], s=marker_pt**2, c="white", edgecolors="black", zorder=3,
+                   label="even class (even IDs)")
+    else:
+        ax.scatter(xy[:, 0], xy[:, 1], s=marker_pt**2, c="white", edgecolors="black", zorder=3)
+    dark = odd if paper else np.zeros(len(xy), dtype=bool)
     font_pt = min(10.0, 0.42 * marker_pt)
     if len(xy) <= LABEL_LIMIT and font_pt >= 3.0:
-        for (x, y), i, o in zip(xy, ids, odd):
-            ax.text(x, y, str(int(i)), fontsize=font_pt, ha="center", va="center", zorder=4,
+        for (x, y), i, o in zip(xy, ids, dark):
+            ax.text(x, y, str(int(i)), fontsize=font_pt, ha="center", va="center", zorder=4, gid="id",
                     color="white" if o else "black")
     if plan.layout.outline:
         ring = np.array(plan.layout.outline + plan.layout.outline[:1])
         ax.plot(*ring.T, color="black", linewidth=1.0, zorder=1)
     a = plan.assignment
-    ax.set_title(
-        f"{Path(plan.layout.source_path).name}: {len(xy)} luminaires, {a.scheme} scheme, "
-        f"{a.bits} bits (naive {a.naive_bits}, bound {a.lower_bound_bits}), {n_regions} regions",
-        fontsize=10,
-    )
+    shading = "regions shaded" if paper else "shaded: tiles of about one set of IDs"
+    title = (f"{Path(plan.layout.source_path).name}: {len(xy)} luminaires, {a.scheme} scheme, "
+             f"{a.bits} bits (naive {a.naive_bits}, bound {a.lower_bound_bits}), {n_regions} regions ({shading})")
+    ax.set_title("\n".join(textwrap.wrap(title, max(40, int(width_in * 72 / 10 * 1.6)))), fontsize=10)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8, markerscale=12 / marker_pt,
-              frameon=False)
-    fig.tight_layout()
-    save_png(fig, path)
+    if paper:
+        fig.legend(loc="outside lower center", ncol=2, fontsize=8, markerscale=12 / marker_pt, frameon=False)
+    return fig
+
+
+@styled
+def render_map(plan: Plan, path: str | Path) -> None:
+    """Write the plan's map as PNG to ``path``."""
+    save_png(map_figure(plan), path)
 
 
 COVERAGE_BIN_M = 0.25
@@ -101,7 +140,12 @@ COVERAGE_BIN_M = 0.25
 
 @styled
 def render_coverage(v: Verification, xy: np.ndarray, site: str, path: str | Path) -> None:
-    """Write the verification's coverage map as PNG: share of decodable poses per square.
+    """Write the verification's coverage map as PNG (:func:`coverage_figure`)."""
+    save_png(coverage_figure(v, xy, site), path)
+
+
+def coverage_figure(v: Verification, xy: np.ndarray, site: str):
+    """The verification's coverage map: share of decodable poses per square.
 
     ``xy`` are the luminaires (N, 2) [m]; ``site`` begins the title (file and scheme).
     Dark is bad: black squares decode nowhere, white everywhere; ambiguous poses are
@@ -119,12 +163,13 @@ def render_coverage(v: Verification, xy: np.ndarray, site: str, path: str | Path
         share = np.where(total > 0, good / total, np.nan)
     span = hi - lo
     inch_per_m = min(14.0 / span[0], 10.0 / span[1], 1.5)
-    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 2.0), max(4.5, span[1] * inch_per_m + 1.2)),
+    fig, ax = plt.subplots(figsize=(max(6.0, span[0] * inch_per_m + 2.6), max(4.5, span[1] * inch_per_m + 1.6)),
                            dpi=110)
+    fig.set_layout_engine("constrained", w_pad=PAD_IN, h_pad=PAD_IN)
     cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
     mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
     fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)
-    ax.scatter(xy[:, 0], xy[:, 1], s=12, facecolors="none", edgecolors="0.35", linewidths=0.6, label="luminaire")
+    ax.scatter(xy[:, 0], xy[:, 1], s=12, facecolors="none", edgecolors="0.55", linewidths=0.8, label="luminaire")
     amb = v.status == AMBIGUOUS
     if amb.any():
         ax.scatter(pos[amb, 0], pos[amb, 1], marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
@@ -134,14 +179,20 @@ def render_coverage(v: Verification, xy: np.ndarray, site: str, path: str | Path
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
-    fig.tight_layout()
-    save_png(fig, path)
+    ax.set_xlim(bins[0][0], bins[0][-1])  # fixed limits: the layout sizes its margins for the ticks drawn
+    ax.set_ylim(bins[1][0], bins[1][-1])
+    fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    return fig
 
 
 @styled
 def render_error(plan: Plan, path: str | Path) -> None:
-    """Write the expected-error map as PNG: median and 90th-percentile error per square, side by side.
+    """Write the expected-error map as PNG (:func:`error_figure`)."""
+    save_png(error_figure(plan), path)
+
+
+def error_figure(plan: Plan):
+    """The expected-error map: median and 90th-percentile error per square, side by side.
 
     Dark is bad (large error); squares where no sampled pose gave a position are light grey.
     """
@@ -171,4 +222,4 @@ def render_error(plan: Plan, path: str | Path) -> None:
     fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method with "
                  f"{', '.join(TERM_NAMES[k] for k in s['includes']) or 'exact images'}, "
                  f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
-    save_png(fig, path)
+    return fig

@@ -1,4 +1,4 @@
-"""The ten console scripts, as installed: --help answers at once (the stages load only when a command runs)."""
+"""The console scripts, as installed: --help answers at once (the stages load only when a command runs)."""
 
 import json
 import shutil
@@ -16,7 +16,7 @@ from conftest import ROOT
 COMMANDS = tuple(sorted(ep.name for ep in metadata.distribution("vlp-plan").entry_points if ep.group == "console_scripts"))
 
 
-def test_the_suite_tests_the_installed_package_and_its_ten_scripts():
+def test_the_suite_tests_the_installed_package_and_its_eleven_scripts():
     """A plain ``pip install .`` must be what the tests import (``python -m pytest`` would put
     the source tree first on the path); a developer's ``pip install -e .`` is the source tree."""
     installs = [json.loads(d.read_text("direct_url.json") or "{}") for d in metadata.distributions(name="vlp-plan")]
@@ -26,7 +26,7 @@ def test_the_suite_tests_the_installed_package_and_its_ten_scripts():
     else:
         # CI's virtual environment lies inside the checkout (.venv/), so test the source folder itself
         assert ROOT / "planner" not in imported.parents, f"the tests import the source tree ({imported}), not the installed package"
-    assert len(COMMANDS) == 10 and all(name.startswith("vlp-") for name in COMMANDS)
+    assert len(COMMANDS) == 11 and all(name.startswith("vlp-") for name in COMMANDS)
     scripts = {Path(shutil.which(name) or "").parent for name in COMMANDS}
     assert scripts == {Path(sys.executable).parent}, f"the scripts on PATH are not this environment's: {scripts}"
 

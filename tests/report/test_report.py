@@ -167,8 +167,9 @@ def test_pdf_report_renders_every_page(site, tmp_path):
     import matplotlib.image as mpimg
 
     pngs = render_pdf(site / "plan" / "site-report.pdf", tmp_path)
-    # title, 5 figures, the error budget, the bill (1 page for 8 IDs) and the checklist (1 page for 32 stops)
-    assert len(pngs) == 9
+    # title, the site advice (grid-32 is below the 90 % goal), 5 figures, the error budget, the bill (1 page for
+    # 8 IDs) and the checklist (1 page for 32 stops)
+    assert len(pngs) == 10
     for png in pngs:
         ink = mpimg.imread(png)[..., :3].mean(axis=2) < 0.5
         assert ink.mean() > 0.001, f"{png.name} is blank"

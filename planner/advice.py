@@ -1,0 +1,292 @@
+"""Site advice: which change would bring a site's sampled coverage up to a goal.
+
+A plan's coverage is the share of sampled poses that decode (``planner.verify``).
+Below :data:`COVERAGE_GOAL`, the planner tries changes an integrator can make
+(a wider camera profile, luminaires mounted higher, denser luminaires; a receiver mode
+once one is registered in :data:`RECEIVERS`), each alone and then two at a time,
+and measures each with the same sampled measure: the share of a coarse pose
+sample (:func:`advice_per_m2`) whose camera sees a window, i.e. three whole,
+non-collinear LEDs (the paper's rule, section 3). The IDs are designed afterwards
+to make those windows unique, so this is the coverage a plan of the changed site
+can reach. Every figure is sampled, never proved. ``docs/advice.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.camera import Camera
+from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
+from planner.layout.model import area_m2, fill_outline
+from planner.verify.windows import find_windows, sample_poses, working_area
+
+ADVICE_POSES_PER_M2 = 10.0
+"""Pose density of the advice's coarse sample [1/m^2] (the plan verifies at 400)."""
+
+ADVICE_MIN_POSES = 4000
+"""The coarse sample holds at least this many poses on small sites (sampling error about 0.5 point)."""
+
+ADVICE_MAX_POSES = 20000
+"""... and at most this many on large ones, so that the advice stays cheap beside the plan."""
+
+DENSER_MAX_LUMINAIRES = 20000
+"""Denser layouts are tried up to this many luminaires."""
+
+MARGIN = 0.01
+"""A change counts as reaching the goal when its sampled coverage is at least goal + MARGIN (sampling error)."""
+
+RAISE_M = (0.5, 1.0, 2.0)
+"""How much higher the luminaires are tried [m]."""
+
+DENSER = (2, 4, 8)
+"""Luminaire count multipliers tried (a regular lattice over the working area)."""
+
+
+@dataclass(frozen=True)
+class Site:
+    """What the coverage measure needs: luminaire centres (N, 3) [m], radii (N,) [m], the outline, the camera and
+    the receiver mode."""
+
+    xyz: np.ndarray
+    radii: np.ndarray
+    outline: Sequence[tuple[float, float]] | None
+    camera: Camera
+    receiver: str = "three"
+    filled: bool = False  # the luminaires were laid out by ``--leds N`` in an outline-only drawing
+
+
+def window_coverage(site: Site, per_m2: float, seed: int) -> float:
+    """Share of sampled poses that see three whole, non-collinear LEDs (the three-LED receiver)."""
+    poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
+    return float(find_windows(poses, site.xyz, site.radii, site.camera).covered.mean())
+
+
+RECEIVERS: dict[str, Callable[[Site, float, int], float]] = {"three": window_coverage}
+"""Coverage measure per receiver mode (``--receiver``); a mode registered here becomes a candidate change."""
+
+
+@dataclass(frozen=True)
+class Change:
+    """One change to a site: what it is for people, the vlp-plan flags that apply it, and how."""
+
+    knob: str  # "receiver", "camera", "height" or "density"
+    text: str
+    flags: tuple[str, ...]  # empty: the site itself must change (e.g. redraw the luminaires)
+    apply: Callable[[Site], Site] = dataclasses.field(compare=False, repr=False)
+    camera: dict | None = None  # the camera file that applies a camera change (camera.to_dict())
+
+
+@dataclass(frozen=True)
+class Row:
+    """A tried change (one or two :class:`Change`) and its sampled coverage."""
+
+    changes: tuple[Change, ...]
+    coverage: float
+    reaches: bool
+
+    def summary(self) -> dict:
+        return {"change": "; ".join(c.text for c in self.changes),
+                "flags": [f for c in self.changes for f in c.flags],
+                "applicable_by_flags": all(c.flags for c in self.changes),
+                "camera": next((c.camera for c in self.changes if c.camera), None),
+                "coverage": round(self.coverage, 4), "reaches_goal": self.reaches}
+
+
+@dataclass(frozen=True)
+class Advice:
+    """The advice for one plan: its coverage, the goal, the changes tried and which reach the goal."""
+
+    coverage: float  # the plan's verified (sampled) coverage
+    too_few: float  # share of the plan's sampled poses that see fewer than three whole LEDs
+    ambiguous: float  # share of the plan's sampled poses whose window reads like another triple
+    goal: float
+    baseline: float  # the site as planned, under the advice's measure
+    rows: tuple[Row, ...]
+    poses: int
+    per_m2: float
+
+    @property
+    def usable(self) -> bool:
+        return self.coverage >= USABLE_COVERAGE
+
+    @property
+    def recommended(self) -> Row | None:
+        """The first row that reaches the goal (rows are in order of least change)."""
+        return next((r for r in self.rows if r.reaches), None)
+
+    def summary(self) -> dict:
+        """The ``advice`` mapping of ``plan.yaml`` and of ``vlp-plan --json``."""
+        rec = self.recommended
+        return {"goal": self.goal, "usable_from": USABLE_COVERAGE, "usable": self.usable,
+                "coverage": round(self.coverage, 6), "too_few_leds": round(self.too_few, 4),
+                "ambiguous": round(self.ambiguous, 4), "meets_goal": self.coverage >= self.goal,
+                "method": "sampled", "measure": "share of sampled poses whose camera sees three whole, "
+                                                 "non-collinear LEDs",
+                "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
+                "baseline": round(self.baseline, 4), "changes": [r.summary() for r in self.rows],
+                "recommended": None if rec is None else self.rows.index(rec)}
+
+
+def advice_per_m2(area: np.ndarray) -> float:
+    """Pose density of the coarse sample over ``area``: :data:`ADVICE_POSES_PER_M2`, more on small sites and
+    less on large ones (between :data:`ADVICE_MIN_POSES` and :data:`ADVICE_MAX_POSES` poses)."""
+    m2 = max(area_m2(area), 1e-6)
+    return float(np.clip(ADVICE_POSES_PER_M2 * m2, ADVICE_MIN_POSES, ADVICE_MAX_POSES)) / m2
+
+
+def _camera_changes(site: Site) -> list[Change]:
+    """The bundled phone profiles (``--camera NAME``) wider than the site's camera, held as the site's camera is
+    (receiver heights, tilt)."""
+    from planner.camera_file import camera_profiles
+
+    now = math.degrees(site.camera.hfov_rad)
+    held = {k: getattr(site.camera, k) for k in ("min_height_m", "max_height_m", "max_tilt_rad")}
+    wider = sorted((p.camera for p in camera_profiles().values() if math.degrees(p.camera.hfov_rad) > now + 1.0),
+                   key=lambda cam: cam.hfov_rad)
+    out = []
+    for cam in wider:
+        cam = dataclasses.replace(cam, **held)
+
+        def with_camera(s: Site, cam: Camera = cam) -> Site:
+            return dataclasses.replace(s, camera=cam)
+
+        out.append(Change("camera", f"camera {cam.name} ({math.degrees(cam.hfov_rad):.0f} deg wide, now {now:.0f})",
+                          ("--camera", cam.name), with_camera, cam.to_dict()))
+    return out
+
+
+def _height_changes(site: Site) -> list[Change]:
+    z = float(np.median(site.xyz[:, 2]))
+    out = []
+    for dz in RAISE_M:
+        def raise_(s: Site, dz: float = dz) -> Site:
+            xyz = s.xyz.copy()
+            xyz[:, 2] += dz
+            return dataclasses.replace(s, xyz=xyz)
+
+        out.append(Change("height", f"luminaires {dz:g} m higher ({z + dz:g} m)",
+                          ("--height", f"{z + dz:g}") if site.filled else (), raise_))
+    return out
+
+
+def _density_changes(site: Site) -> list[Change]:
+    area = working_area(site.xyz[:, :2], site.outline)
+    radius = float(np.median(site.radii))
+    out = []
+    for k in DENSER:
+        n = k * len(site.xyz)
+        if n * (2 * radius) ** 2 > area_m2(area) or n > DENSER_MAX_LUMINAIRES:
+            break
+
+        def denser(s: Site, n: int = n) -> Site:
+            lums, _ = fill_outline(area, n, float(np.median(s.xyz[:, 2])), radius)
+            xyz = np.array([[lum.x, lum.y, lum.z] for lum in lums])
+            # poses over the same floor as the site's: the new lattice's hull is smaller than the old one's
+            return dataclasses.replace(s, xyz=xyz, radii=np.full(len(lums), radius),
+                                       outline=[(float(x), float(y)) for x, y in area])
+
+        pitch = math.sqrt(area_m2(area) / n)
+        out.append(Change("density", f"{n} luminaires ({k} x, {pitch:.2g} m apart)",
+                          ("--leds", str(n)) if site.filled else (), denser))
+    return out
+
+
+def _receiver_changes(site: Site) -> list[Change]:
+    def with_mode(mode: str) -> Callable[[Site], Site]:
+        return lambda s: dataclasses.replace(s, receiver=mode)
+
+    return [Change("receiver", f"receiver mode {mode}", ("--receiver", mode), with_mode(mode))
+            for mode in RECEIVERS if mode != site.receiver]
+
+
+KNOBS = (_receiver_changes, _camera_changes, _height_changes, _density_changes)
+"""Candidate changes per knob, each list from the least to the most change; the order of the table."""
+
+
+def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float = 0.0, *, goal: float = COVERAGE_GOAL,
+           seed: int = 0) -> Advice:
+    """Try the candidate changes on ``site`` (planned at ``coverage``, ``too_few`` of its poses
+    seeing fewer than three LEDs and ``ambiguous`` of them reading alike) until some reach ``goal``.
+
+    For each knob the least change that reaches the goal, else its best; if no single change
+    does, the least pair of changes (two knobs) that does, else the best pair.
+    """
+    per_m2 = advice_per_m2(working_area(site.xyz[:, :2], site.outline))
+    cache: dict[tuple[str, ...], float] = {}
+
+    def measure(changes: tuple[Change, ...]) -> float:
+        key = tuple(c.text for c in changes)
+        if key not in cache:
+            s = site
+            for c in changes:
+                s = c.apply(s)
+            cache[key] = RECEIVERS[s.receiver](s, per_m2, seed)
+        return cache[key]
+
+    def row(changes: tuple[Change, ...]) -> Row:
+        cov = measure(changes)
+        return Row(changes, cov, cov >= goal + MARGIN)
+
+    baseline = measure(())
+    knobs = [c for c in (knob(site) for knob in KNOBS) if c]
+    rows: list[Row] = []
+    if coverage < goal:
+        for changes in knobs:
+            tried = []
+            for c in changes:
+                tried.append(row((c,)))
+                if tried[-1].reaches:
+                    break
+            rows.append(tried[-1] if tried[-1].reaches else max(tried, key=lambda r: r.coverage))
+        if not any(r.reaches for r in rows):
+            best = None
+            for a, b in itertools.combinations(knobs, 2):
+                pairs = sorted(itertools.product(range(len(a)), range(len(b))), key=lambda ij: (sum(ij), ij))
+                for i, j in pairs:
+                    r = row((a[i], b[j]))
+                    if r.reaches:
+                        rows.append(r)
+                        break
+                    best = r if best is None or r.coverage > best.coverage else best
+            if best is not None and not any(r.reaches for r in rows):
+                rows.append(best)
+    rows.sort(key=lambda r: (not r.reaches, len(r.changes), -r.coverage if not r.reaches else 0))
+    n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
+    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2)
+
+
+def verdict(advice: dict) -> str:
+    """One line on whether a plan is usable and meets the goal, from the ``advice`` mapping."""
+    cov, goal = 100 * advice["coverage"], 100 * advice["goal"]
+    if not advice["usable"]:
+        few, alike = 100 * advice.get("too_few_leds", 0.0), 100 * advice.get("ambiguous", 0.0)
+        why = (f"{few:.0f} % see fewer than three whole LEDs: the luminaires are too sparse for this camera"
+               if few >= 50 else f"{alike:.0f} % are ambiguous under this scheme (--scheme auto avoids that)"
+               if alike >= few else "poses fail near the walls or see collinear LEDs")
+        return (f"NOT USABLE: only {cov:.1f} % of sampled poses decode (a usable plan needs "
+                f"{100 * advice['usable_from']:.0f} %); {why}; see the advice table")
+    if not advice["meets_goal"]:
+        return f"usable, below the goal: {cov:.1f} % of sampled poses decode, the goal is {goal:.0f} %"
+    return f"meets the goal: {cov:.1f} % of sampled poses decode (goal {goal:.0f} %)"
+
+
+def table(advice: dict) -> list[tuple[str, str, str]]:
+    """The advice table as (change, sampled coverage, remark) rows, the site as planned first."""
+    rows = [("as planned (this site, this camera)", f"{100 * advice['baseline']:.1f} %", "")]
+    for k, c in enumerate(advice["changes"]):
+        remark = ("recommended: " if k == advice["recommended"] else "") + (
+            "reaches the goal" if c["reaches_goal"] else
+            f"within {100 * MARGIN:g} point of the goal (sampling error)" if c["coverage"] >= advice["goal"] else
+            "below the goal")
+        if c["flags"]:
+            remark += "; vlp-plan " + " ".join(c["flags"])
+        if not c["applicable_by_flags"]:
+            remark += "; change the layout"
+        rows.append((c["change"], f"{100 * c['coverage']:.1f} %", remark))
+    return rows

@@ -1,0 +1,153 @@
+"""A phone photo as the receiver needs it: linear luminance above the lit ceiling, in the twin's DN.
+
+A phone saves 8-bit (or 16-bit PNG) sRGB: gamma-encoded colour. The receiver's
+stages (:mod:`planner.twin.receiver`) work on linear light, where a row's level is
+proportional to the LED's drive over the row's exposure, on a dark ceiling. So:
+
+1. **Read** the pixels as the sensor wrote them (``IMREAD_IGNORE_ORIENTATION``: an
+   EXIF rotation would turn the rolling shutter's rows into columns).
+2. **Linearise**: the inverse sRGB transfer function of IEC 61966-2-1.
+3. **Luminance**: Rec. 709 / sRGB weights ``Y = 0.2126 R + 0.7152 G + 0.0722 B``. A
+   saturated LED clips at 1 in every channel, so its plateau is flat at 1.
+4. **Ceiling**: a lit ceiling (daylight, other lamps) is a smooth surface under the
+   LEDs; it is fitted as a cubic polynomial in x and y to block medians of the image,
+   leaving out blocks lit by LEDs (iterated sigma clipping), and subtracted. The LEDs
+   then stand on a flat level, as in the twin's frames.
+5. **DN**: the difference is scaled to 0..255 on the level :data:`DARK_DN`, so the
+   receiver's thresholds (in DN of 255) apply unchanged.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from planner.camera import Camera
+from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
+from planner.errors import InputError
+from planner.photo.decode import PhotoBlob, decode_photo
+from planner.twin.receiver import FrameFormat
+
+LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)
+"""Rec. 709 luminance weights in OpenCV's channel order (blue, green, red)."""
+
+DARK_DN = 16.0
+"""Level the subtracted ceiling sits at [DN]: room below it for the noise of the ceiling."""
+
+BLOCK_PX = 16
+"""Side of the blocks whose medians the ceiling is fitted to [px]."""
+
+CLIP_SIGMA = 4.0
+"""Blocks brighter than the fitted ceiling by this many robust standard deviations are LED light."""
+
+SUFFIXES = (".jpg", ".jpeg", ".png")
+"""The photo files ``vlp-report --photos`` reads from a folder."""
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """The pixels of a JPEG or PNG as saved, grey or BGR (uint8 or uint16); :class:`InputError` if unreadable."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such photo; give a JPEG or PNG the phone took")
+    flags = cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_IGNORE_ORIENTATION
+    image = cv2.imread(str(path), flags)
+    if image is None:
+        raise InputError(f"{path}: not an image OpenCV can read; give the photo as JPEG or PNG")
+    if image.dtype not in (np.uint8, np.uint16):
+        raise InputError(f"{path}: {image.dtype} pixels; give an 8-bit or 16-bit JPEG or PNG")
+    if image.ndim == 3 and image.shape[2] == 4:  # PNG with alpha: the colour is what the camera saw
+        image = image[..., :3]
+    return image
+
+
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
+    """Linear light 0..1 of sRGB-encoded values 0..1 (IEC 61966-2-1's inverse transfer function)."""
+    v = np.asarray(encoded, np.float32)
+    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4)).astype(np.float32)
+
+
+def linear_luminance(image: np.ndarray) -> np.ndarray:
+    """Linear relative luminance 0..1 (float32, height x width) of an sRGB image (grey or BGR, 8 or 16 bit)."""
+    top = 255 if image.dtype == np.uint8 else 65535
+    if image.dtype == np.uint8:  # a table: 12 M pixels through pow() would take a second
+        lin = srgb_to_linear(np.arange(256) / 255.0)[image]
+    else:
+        lin = srgb_to_linear(image / float(top))
+    if lin.ndim == 2:
+        return lin
+    return np.tensordot(lin[..., :3], LUMA_BGR, axes=([2], [0])).astype(np.float32)
+
+
+def _design(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Cubic polynomial terms in x and y (normalised to -1..1): 10 columns."""
+    return np.stack([x**i * y**j for i in range(4) for j in range(4 - i)], axis=-1)
+
+
+def ceiling(luminance: np.ndarray) -> np.ndarray:
+    """The smooth lit ceiling under the LEDs (float32, the image's size): a cubic fitted to block medians.
+
+    Blocks brighter than the fit by :data:`CLIP_SIGMA` robust standard deviations, and
+    their neighbours (the LED's rim and halo), are left out, and the fit repeated.
+    """
+    h, w = luminance.shape
+    bh, bw = h // BLOCK_PX, w // BLOCK_PX
+    if bh < 4 or bw < 4:
+        raise InputError(f"a {w} x {h} px photo is too small to tell the ceiling from the LEDs")
+    blocks = luminance[:bh * BLOCK_PX, :bw * BLOCK_PX].reshape(bh, BLOCK_PX, bw, BLOCK_PX)
+    med = np.median(blocks.transpose(0, 2, 1, 3).reshape(bh, bw, -1), axis=2)
+    yy, xx = np.mgrid[0:bh, 0:bw]
+    a = _design(2 * (xx + 0.5) / bw - 1, 2 * (yy + 0.5) / bh - 1).reshape(-1, 10)
+    z = med.ravel()
+    keep = z <= np.median(z) + CLIP_SIGMA * max(_mad(z), 1e-4)
+    coef = np.zeros(10)
+    for _ in range(4):
+        coef = np.linalg.lstsq(a[keep], z[keep], rcond=None)[0]
+        resid = z - a @ coef
+        lit = (resid > CLIP_SIGMA * max(_mad(resid[keep]), 1e-4)).reshape(bh, bw).astype(np.uint8)
+        keep = ~cv2.dilate(lit, np.ones((5, 5), np.uint8)).astype(bool).ravel()
+        if keep.sum() < 20:
+            raise InputError("the photo is nearly all bright: no ceiling to see the LEDs against; "
+                             "photograph the ceiling with a shorter exposure")
+    small = (a @ coef).reshape(bh, bw).astype(np.float32)
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _mad(v: np.ndarray) -> float:
+    """Robust standard deviation (1.4826 x the median absolute deviation)."""
+    return 1.4826 * float(np.median(np.abs(v - np.median(v))))
+
+
+def receiver_frame(image: np.ndarray) -> np.ndarray:
+    """The photo as a twin frame (uint8): linear luminance above the fitted ceiling, 0..1 to 0..255 DN on
+    :data:`DARK_DN`; where an LED saturated, its plateau is flat at ``255 (1 - ceiling)``."""
+    lum = linear_luminance(image)
+    lum -= ceiling(lum)
+    lum *= 255.0
+    lum += DARK_DN
+    return np.clip(np.rint(lum, out=lum), 0, 255, out=lum).astype(np.uint8)
+
+
+def load_photo(path: str | Path, camera: Camera) -> np.ndarray:
+    """A photo taken with ``camera``, as :func:`receiver_frame`; :class:`InputError` if unreadable or of another size."""
+    image = read_image(path)
+    h, w = image.shape[:2]
+    if (w, h) != (camera.width_px, camera.height_px):
+        turned = " (turned: give the photo as the sensor wrote it)" if (h, w) == (camera.width_px, camera.height_px) else ""
+        named = f"camera {camera.name!r}" if camera.name else "the camera"
+        raise InputError(f"{path}: the photo is {w} x {h} px but {named} takes {camera.width_px} x {camera.height_px} "
+                         f"px{turned}; give the camera that took it (--camera NAME or YAML) and the photo as the phone "
+                         "saved it, not resized or cropped")
+    return receiver_frame(image)
+
+
+def photo_blobs(path: str | Path, camera: Camera, modulation: FrameFormat) -> list[PhotoBlob]:
+    """Every LED blob of the photo at ``path`` taken with ``camera``, decoded with the site's ``modulation``.
+
+    The exposure and blur of a phone photo are not known; the twin's defaults
+    (:data:`~planner.defaults.SENSOR_EXPOSURE_S`, :data:`~planner.defaults.SENSOR_BLUR_PX`) set the
+    stripe closing and the fit's slack, which have margin for either.
+    """
+    return decode_photo(load_photo(path, camera), camera, modulation, blur_px=SENSOR_BLUR_PX,
+                        exposure_s=SENSOR_EXPOSURE_S)
