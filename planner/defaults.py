@@ -10,6 +10,12 @@ UNIT_TO_M = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254, "ft": 0.3048}
 SCHEMES = ("auto", "paper", "window", "unique")
 """ID schemes ``vlp-plan --scheme`` offers."""
 
+RECEIVERS = ("three", "gravity", "auto")
+"""Receiver modes ``vlp-plan --receiver`` offers (:mod:`planner.receivers`)."""
+
+ACCELEROMETER_SIGMA_DEG = 1.0
+"""Default standard deviation of the gravity direction a phone's accelerometer gives [deg]."""
+
 LINE_CODE_NAMES = ("4b6b", "manchester")
 """Line codes of the frames (:data:`planner.frame.LINE_CODES` holds them)."""
 

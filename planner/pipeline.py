@@ -21,7 +21,14 @@ from planner.camera import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
 from planner.codes.schemes import assign_unique, assign_window
-from planner.defaults import INSTALL_TOLERANCE_M, MAX_VIDEO_FRAMES, SCHEMES, VIDEO_FPS
+from planner.defaults import (
+    ACCELEROMETER_SIGMA_DEG,
+    INSTALL_TOLERANCE_M,
+    MAX_VIDEO_FRAMES,
+    RECEIVERS,
+    SCHEMES,
+    VIDEO_FPS,
+)
 from planner.errors import InputError, UsageError
 from planner.frame import line_code
 from planner.graph import build_graph
@@ -80,6 +87,8 @@ class PlanOptions:
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
     error_terms: ErrorTerms = DEFAULT_TERMS
+    receiver: str = "three"
+    accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG
     video_fps: float = VIDEO_FPS
     max_video_frames: int = MAX_VIDEO_FRAMES
     mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
@@ -162,6 +171,11 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         raise UsageError(f"--scheme {options.scheme}: unknown scheme; use one of {', '.join(SCHEMES)}")
     if options.scheme == "auto" and not options.verify:
         raise UsageError("--no-verify needs an explicit --scheme: auto chooses the scheme by verifying it")
+    if options.receiver not in RECEIVERS:
+        raise UsageError(f"--receiver {options.receiver}: unknown receiver; use one of {', '.join(RECEIVERS)}")
+    if options.receiver != "three" and not options.verify:
+        raise UsageError(f"--receiver {options.receiver} needs verification: the two-LED receiver is judged by "
+                         "verifying it; drop --no-verify")
     xy, xyz = layout.xy, layout.xyz
     radii = np.array([lum.radius for lum in layout.luminaires])
     graph = build_graph(xy)
@@ -181,48 +195,84 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     def verify_ids(ids: np.ndarray) -> Verification | None:
         return classify(observations[options.seed], ids) if options.verify else None
 
-    proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
-    made = {}
-    if options.scheme in ("paper", "auto"):
-        paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
-        made["paper"] = (paper, verify_ids(paper.ids))
-    if options.scheme in ("window", "auto"):
-        made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
-                                       time_budget=options.time_budget, per_m2=options.poses_per_m2,
-                                       tolerance_m=options.tolerance_m, install_tolerance_m=options.install_tolerance_m,
-                                       observations=observations, proof=proof)
-    if options.scheme == "unique":
-        unique = assign_unique(xy, graph)
-        made["unique"] = (unique, verify_ids(unique.ids))
-    bound = max([side_bound(v.windows, xyz, options.tolerance_m) for _, v in made.values() if v]
-                + [float(a.detail.get("max_side_m", 0.0)) for a, _ in made.values()], default=0.0)
-
-    def judged(a, v):  # every scheme is also judged on the window set, up to one side bound
-        return a, (v and replace(v, window_set=check_window_set(xyz, radii, a.ids, bound,
-                                                                  tolerance_m=options.tolerance_m,
-                                                                  install_tolerance_m=options.install_tolerance_m,
-                                                                  proof=proof)))
-
-    made = {k: judged(a, v) for k, (a, v) in made.items()}
-    if options.scheme == "auto":
-        clean = [k for k, (_, v) in made.items() if v is not None and v.clean]  # auto verifies: never None
-        if clean:
-            chosen = min(clean, key=lambda k: (made[k][0].bits, k != "paper"))
-        else:
+    def plan_three():
+        proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
+        made = {}
+        if options.scheme in ("paper", "auto"):
+            paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
+            made["paper"] = (paper, verify_ids(paper.ids))
+        if options.scheme in ("window", "auto"):
+            made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
+                                           time_budget=options.time_budget, per_m2=options.poses_per_m2,
+                                           tolerance_m=options.tolerance_m, install_tolerance_m=options.install_tolerance_m,
+                                           observations=observations, proof=proof)
+        if options.scheme == "unique":
             unique = assign_unique(xy, graph)
-            made["unique"] = judged(unique, verify_ids(unique.ids))
-            chosen = "unique"
+            made["unique"] = (unique, verify_ids(unique.ids))
+        bound = max([side_bound(v.windows, xyz, options.tolerance_m) for _, v in made.values() if v]
+                    + [float(a.detail.get("max_side_m", 0.0)) for a, _ in made.values()], default=0.0)
+
+        def judged(a, v):  # every scheme is also judged on the window set, up to one side bound
+            return a, (v and replace(v, window_set=check_window_set(xyz, radii, a.ids, bound,
+                                                                      tolerance_m=options.tolerance_m,
+                                                                      install_tolerance_m=options.install_tolerance_m,
+                                                                      proof=proof)))
+
+        made = {k: judged(a, v) for k, (a, v) in made.items()}
+        if options.scheme == "auto":
+            clean = [k for k, (_, v) in made.items() if v is not None and v.clean]  # auto verifies: never None
+            if clean:
+                chosen = min(clean, key=lambda k: (made[k][0].bits, k != "paper"))
+            else:
+                unique = assign_unique(xy, graph)
+                made["unique"] = judged(unique, verify_ids(unique.ids))
+                chosen = "unique"
+        else:
+            chosen = options.scheme
+        assignment, verification = made[chosen]
+        considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),
+                          "window_set_conflicts": (len(v.window_set.conflicts) if v and v.window_set else None)}
+                      for k, (a, v) in made.items()}
+        return assignment, verification, considered
+
+    def plan_two():
+        from planner.receivers import plan_gravity
+
+        return plan_gravity(xyz, radii, graph, cam, sample, scheme=options.scheme, per_m2=options.poses_per_m2,
+                            seed=options.seed, time_budget=options.time_budget, tolerance_m=options.tolerance_m,
+                            install_tolerance_m=options.install_tolerance_m)
+
+    receiver = None
+    if options.receiver == "three":
+        assignment, verification, considered = plan_three()
     else:
-        chosen = options.scheme
-    assignment, verification = made[chosen]
-    considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),
-                      "window_set_conflicts": (len(v.window_set.conflicts) if v and v.window_set else None)}
-                  for k, (a, v) in made.items()}
+        from planner.receivers import AUTO_GOAL, ReceiverChoice, seen_shares
+
+        planned = {}
+        if options.receiver == "auto":
+            planned["three"] = plan_three()
+        if options.receiver == "gravity" or planned["three"][1].coverage < AUTO_GOAL:
+            planned["gravity"] = plan_two()
+        coverage = {k: float(v.coverage) for k, (_, v, _) in planned.items()}
+        mode = max(coverage, key=lambda k: (coverage[k], k == "three"))
+        reason = ("asked for (--receiver gravity)" if options.receiver == "gravity" else
+                  f"three-LED receiver decodes {100 * coverage['three']:.1f} % of sampled poses, at least the goal "
+                  f"of {100 * AUTO_GOAL:.0f} %" if len(planned) == 1 else
+                  f"decodes more sampled poses ({100 * coverage[mode]:.1f} % against "
+                  f"{100 * min(coverage.values()):.1f} %)")
+        assignment, verification, considered = planned[mode]
+        receiver = ReceiverChoice(mode, coverage, seen_shares(sample.first(options.poses_per_m2)[1]), reason,
+                                  options.accelerometer_sigma_deg)
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
     code = line_code(options.line_code)
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
-    rows = smallest_window_image_rows(xyz, radii, cam, sample)
+    if receiver is not None and receiver.mode == "gravity":
+        from planner.receivers import smallest_pair_image_rows
+
+        rows = smallest_pair_image_rows(xyz, radii, cam, sample)
+    else:
+        rows = smallest_window_image_rows(xyz, radii, cam, sample)
     modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
                           video_fps=options.video_fps, max_video_frames=options.max_video_frames,
                           mcu_clock_hz=options.mcu_clock_hz)
@@ -237,7 +287,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
         advice = advise(Site(xyz, radii, layout.outline, cam, filled=filled), verification.coverage, *share,
                         goal=options.coverage_goal, seed=options.seed)
-    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
 
 
 def default_outdir(layout_path: str | Path) -> Path:

@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.layout.model import Layout
     from planner.modulation import Modulation
     from planner.positioning.accuracy import SiteAccuracy
+    from planner.receivers import ReceiverChoice
     from planner.verify.verify import Verification
 
 FORMAT = "vlp-plan/1"
@@ -45,6 +46,7 @@ class Plan:
     accuracy: SiteAccuracy | None = None
     modulation: Modulation | None = None
     advice: Advice | None = None
+    receiver: ReceiverChoice | None = None
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -112,6 +114,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
             "lattice": g.lattice is not None,
         },
         "schemes_considered": plan.considered,
+        **({"receiver": plan.receiver.summary()} if plan.receiver is not None else {}),
         "camera": plan.camera.to_dict(),
         "verification": (plan.verification.summary([lum.name for lum in lay.luminaires])
                          if plan.verification is not None else None),

@@ -230,6 +230,7 @@ class PlanFile(_Section):
     code: Code
     graph: dict[str, Any] | None = None
     schemes_considered: dict[str, Any] | None = None
+    receiver: dict[str, Any] | None = None
     camera: CameraFields = CameraFields()
     verification: Verification | None = None
     advice: Advice | None = None
@@ -293,6 +294,11 @@ class PlanFile(_Section):
     def outline_xy(self) -> np.ndarray | None:
         """The room outline, shape (M, 2) [m], or None."""
         return None if self.outline is None else np.array(self.outline, dtype=float)
+
+    @property
+    def receiver_mode(self) -> str:
+        """``three`` (the paper's receiver; no ``receiver`` section) or ``gravity``."""
+        return str((self.receiver or {}).get("mode", "three"))
 
     def camera_model(self) -> Camera:
         """The camera the plan was made for."""

@@ -229,22 +229,25 @@ def progress(message: str) -> None:
 
 def verification_line(v: dict) -> str:
     n = max(v["poses"], 1)
+    w = v.get("window_set")
+    two = bool(w and "pairs" in w)  # the gravity receiver's two-LED windows
     line = (f"{v['poses']} sampled poses: {100 * v['coverage']:.1f} % decodable, {v['ambiguous']} ambiguous, "
-            f"{100 * v['collinear'] / n:.1f} % collinear, {100 * v['too_few_leds'] / n:.1f} % see fewer than 3 LEDs")
+            f"{100 * v['collinear'] / n:.1f} % collinear, {100 * v['too_few_leds'] / n:.1f} % see fewer than "
+            f"{2 if two else 3} LEDs")
     if v["first_conflicts"]:
         group = v["first_conflicts"][0]
         line += "; first conflict: " + " vs ".join("(" + ", ".join(t) + ")" for t in group[:2])
-    w = v.get("window_set")
     if w:
+        what, other = ("pairs", "pair") if two else ("triangles", "triple")
         bound = ("every pose of the envelope" if w.get("complete") else
-                 f"empty, sides up to {w['max_side_m']:g} m from samples")
-        line += (f"\n  windows  {w['triangles']} triangles that may be windows ({bound}, installed within "
-                 f"{w['install_tolerance_m']:g} m): {w['read_alike']} read like another triple")
+                 f"empty, sides up to {w['max_length_m' if two else 'max_side_m']:g} m from samples")
+        line += (f"\n  windows  {w[what]} {what} that may be windows ({bound}, installed within "
+                 f"{w['install_tolerance_m']:g} m): {w['read_alike']} read like another {other}")
         if w["first_conflicts"]:
             line += "; first: " + " vs ".join("(" + ", ".join(t) + ")" for t in w["first_conflicts"][0][:2])
         line += ("\n  proof    every pose of the envelope that sees a window names one place: proved" if w.get("proved") else
-                 "\n  proof    not proved: " + (w.get("not_proved_because") or "a triangle that may be a window "
-                                                 "reads like another triple"))
+                 "\n  proof    not proved: " + (w.get("not_proved_because") or f"a {other} that may be a window "
+                                                 f"reads like another {other}"))
     return line
 
 

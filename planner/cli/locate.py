@@ -84,7 +84,8 @@ def simulate(plan: PlanFile, pose: str, noise_px: float, seed: int) -> dict:
     position, rotation = _pose(pose)
     rng = np.random.default_rng(seed) if noise_px > 0 else None
     seen = observe(position, rotation, site.xyz, site.radii, camera, rng, noise_px)
-    return snapshot_document(Snapshot(camera, [int(site.ids[k]) for k in seen.index], seen.ellipses))
+    gravity = rotation.T @ np.array([0.0, 0.0, -1.0]) if plan.receiver_mode == "gravity" else None  # exact vertical
+    return snapshot_document(Snapshot(camera, [int(site.ids[k]) for k in seen.index], seen.ellipses, gravity))
 
 
 def result_document(site: Site, snap: Snapshot | None, found, max_residual_px: float = MAX_RESIDUAL_PX) -> dict:

@@ -23,6 +23,7 @@ from planner.defaults import (
     MAX_TIME_LIMIT_S,
     MAX_VIDEO_FPS,
     MAX_VIDEO_FRAMES,
+    RECEIVERS,
     SCHEMES,
     VIDEO_FPS,
 )
@@ -54,6 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
                    help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
                    "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
+    g.add_argument("--receiver", choices=list(RECEIVERS), default="three",
+                   help="receiver the plan is made for: three (default: the paper's, three whole LEDs in view), "
+                   "gravity (two whole LEDs plus the phone's accelerometer), auto (three, or gravity where the "
+                   "three-LED receiver decodes under 90 %% of poses and gravity decodes more); docs/schemes.md")
     g.add_argument("--time-limit", type=cli.at_most(MAX_TIME_LIMIT_S, strict=False), default=10.0, metavar="S",
                    help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10, at most "
                    f"{MAX_TIME_LIMIT_S:g})")
@@ -143,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
                                          args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
-                                         mcu_clock_hz=args.mcu_clock_hz,
+                                         mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
                                          coverage_goal=args.coverage_goal / 100))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
@@ -175,6 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
+        "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": "three"},
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
@@ -188,9 +194,10 @@ def main(argv: list[str] | None = None) -> int:
         _print_summary(summary)
     v = plan.verification
     unusable = plan.advice is not None and not plan.advice.usable
+    few = 2 if plan.receiver is not None and plan.receiver.mode == "gravity" else 3
     if v is not None and unusable:
         print(f"vlp-plan: plan written, but NOT USABLE: only {100 * v.coverage:.1f} % of sampled poses decode "
-              f"({v.count(3)} of {v.poses} see fewer than 3 whole LEDs); see the advice in the summary and "
+              f"({v.count(3)} of {v.poses} see fewer than {few} whole LEDs); see the advice in the summary and "
               "the site report", file=sys.stderr)
     if v is not None and v.conflicts:
         print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
@@ -200,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
         assert v.window_set is not None  # no ambiguous pose, so the window set is what is not clean
         first = v.window_set.conflicts[0]
         names = [lum.name for lum in plan.layout.luminaires]
-        print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} triangles that may be windows read like "
+        print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} windows of the window set read like "
               f"other luminaires under the {plan.assignment.scheme} scheme, first "
               + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
               file=sys.stderr)
@@ -236,6 +243,11 @@ def _print_summary(s: dict) -> None:
                      f"{clash} triangles read alike" if clash else "verified" if usable else "unambiguous")
             parts.append(f"{name} {c['bits']} bits ({100 * eff:.0f} %, {state})")
         print(f"  schemes  {'; '.join(parts)}; naive {s['naive_bits']} bits")
+    r = s["receiver"]
+    if "coverage" in r:
+        shares = ", ".join(f"{k} {100 * c:.1f} %" for k, c in r["coverage"].items())
+        print(f"  receiver {r['mode']} ({r['reason']}); decodable poses by mode: {shares}; "
+              f"{100 * r['poses_seeing']['exactly_one_led']:.1f} % of poses see exactly one whole LED")
     v = s["verification"]
     if v:
         line = cli.verification_line(v)

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from planner._files import write_bytes_atomically
 from planner.cli import common as cli
-from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
+from planner.defaults import ACCELEROMETER_SIGMA_DEG, SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from planner.errors import ExitCode, UsageError
 
@@ -61,6 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"read noise sigma [DN of 255] (default {SENSOR_READ_NOISE_DN:g})")
     g.add_argument("--off-level", type=float, default=0.0, metavar="SHARE",
                    help="light of an 'off' chip as a share of 'on' (default 0)")
+    g.add_argument("--accelerometer-deg", type=cli.non_negative_float, default=ACCELEROMETER_SIGMA_DEG, metavar="DEG",
+                   help="gravity plans: RMS error of the accelerometer's vertical, in degrees "
+                   f"(default {ACCELEROMETER_SIGMA_DEG:g})")
     g = p.add_argument_group("grading")
     g.add_argument("--max-error", type=cli.positive_float, default=TOLERANCE_M, metavar="M",
                    help=f"a fix this close to the truth counts as located [m] (default {TOLERANCE_M:g})")
@@ -82,10 +85,10 @@ def _sensor(args) -> Sensor:
 _WORKER: dict = {}
 
 
-def _init(plan: PlanFile, sensor: Sensor, tolerance_m: float) -> None:
+def _init(plan: PlanFile, sensor: Sensor, tolerance_m: float, accelerometer_deg: float) -> None:
     from planner.twin.twin import Twin
 
-    _WORKER.update(twin=Twin.from_plan(plan, sensor), tolerance_m=tolerance_m)
+    _WORKER.update(twin=Twin.from_plan(plan, sensor, accelerometer_deg), tolerance_m=tolerance_m)
 
 
 def _one(task) -> PoseResult:
@@ -119,14 +122,14 @@ def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
 
     from planner.twin.twin import Twin, covered_poses, run_pose
 
-    twin = Twin.from_plan(plan, sensor)
+    twin = Twin.from_plan(plan, sensor, args.accelerometer_deg)
     poses = covered_poses(twin, args.poses, args.seed)
     rotations = poses.rotation
     angles = np.degrees(np.column_stack([poses.tilt_rad, poses.azimuth_rad, poses.roll_rad]))
     tasks = [(k, args.seed, poses.position[k], rotations[k], tuple(angles[k])) for k in range(len(poses))]
     show = sys.stderr.isatty()
     results = []
-    init = (plan, sensor, args.max_error)
+    init = (plan, sensor, args.max_error, args.accelerometer_deg)
     stream: Iterator[PoseResult]
     if args.jobs == 1:
         _init(*init)
@@ -208,7 +211,7 @@ def _single(plan: PlanFile, args, sensor: Sensor) -> int:
     from planner.twin.twin import Twin, run_pose
 
     position, rotation = _pose(args.pose, "--pose")
-    twin = Twin.from_plan(plan, sensor)
+    twin = Twin.from_plan(plan, sensor, args.accelerometer_deg)
     angles = tuple(float(v) for v in args.pose.split(",")[3:])
     r, frame = run_pose(twin, position, rotation, angles, np.random.default_rng(args.seed), args.max_error)
     if args.png:

@@ -43,8 +43,6 @@ def main(argv: list[str] | None = None) -> int:
     map_path = cli.output_file("--map", args.map)
 
     from planner.plan_file import load_plan
-    from planner.verify.proof import prove_window_set
-    from planner.verify.verify import check_window_set, side_bound, verify_plan
 
     plan = load_plan(args.plan)
     from planner.budget import check_work, verify_work
@@ -52,18 +50,16 @@ def main(argv: list[str] | None = None) -> int:
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     xyz, radii, ids = plan.xyz, plan.radii, plan.ids
     camera = cli.camera_from_args(args, plan.camera_model())
-    result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
-                         tolerance_m=args.tolerance)
     recorded = (plan.verification.window_set if plan.verification else None) or {}
     install = args.install_tolerance if args.install_tolerance is not None else \
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
-    # The proof is made anew from the luminaires and the camera, never read from the plan; without
-    # one, only the sampled side bound may come from the plan.
-    proof = prove_window_set(xyz, radii, camera, install)
-    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0))
-                if recorded.get("max_side_from") != "proof" else 0.0)
-    result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
-                                                         install_tolerance_m=install, proof=proof))
+    if plan.receiver_mode == "gravity":  # two-LED windows (planner.receivers)
+        from planner.receivers import verify_gravity
+
+        result = verify_gravity(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
+                                tolerance_m=args.tolerance, install_tolerance_m=install)
+    else:
+        result = _verify_three(xyz, radii, ids, plan, camera, args, recorded, install)
     summary = result.summary(plan.names, limit=10)
     if map_path is not None:
         from planner.report.maps import render_coverage
@@ -77,6 +73,22 @@ def main(argv: list[str] | None = None) -> int:
         for group in summary["first_conflicts"] + summary["window_set"]["first_conflicts"]:
             print("  same key: " + " = ".join("(" + ", ".join(t) + ")" for t in group))
     return 0 if result.clean else ExitCode.CHECK_FAILED
+
+
+def _verify_three(xyz, radii, ids, plan, camera, args, recorded: dict, install: float):
+    """The three-LED receiver's verification: sampled windows and the window set, proved where the proof completes."""
+    from planner.verify.proof import prove_window_set
+    from planner.verify.verify import check_window_set, side_bound, verify_plan
+
+    result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
+                         tolerance_m=args.tolerance)
+    # The proof is made anew from the luminaires and the camera, never read from the plan; without
+    # one, only the sampled side bound may come from the plan.
+    proof = prove_window_set(xyz, radii, camera, install)
+    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0))
+                if recorded.get("max_side_from") != "proof" else 0.0)
+    return replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
+                                                       install_tolerance_m=install, proof=proof))
 
 
 def console_main(argv: list[str] | None = None) -> int:

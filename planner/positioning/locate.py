@@ -10,6 +10,7 @@ within ``max_residual_px``. Exactly one place must remain.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -49,17 +50,21 @@ class Site:
 
 @dataclass(frozen=True)
 class Snapshot:
-    """What a receiver reports from one image: its camera, and each LED's decoded ID and ellipse."""
+    """What a receiver reports from one image: its camera, and each LED's decoded ID and ellipse;
+    with an accelerometer, ``gravity`` (unit vector down, camera frame) and its uncertainty [rad]."""
 
     camera: Camera
     ids: list[int]
     ellipses: list[Ellipse]
+    gravity: np.ndarray | None = None
+    gravity_sigma_rad: float = math.radians(1.0)
 
     def ideal(self) -> Snapshot:
         """This snapshot undistorted (:func:`planner.positioning.undistort.ideal_ellipses`): ellipses and
         camera as an ideal pinhole sees them; itself when the camera does not distort."""
         ellipses, camera = ideal_ellipses(self.ellipses, self.camera)
-        return self if camera is self.camera else Snapshot(camera, self.ids, ellipses)
+        return self if camera is self.camera else Snapshot(camera, self.ids, ellipses, self.gravity,
+                                                            self.gravity_sigma_rad)
 
 
 @dataclass(frozen=True)
@@ -162,6 +167,10 @@ def locate(site: Site, snap: Snapshot, method: str = "perspective", max_residual
             raise InputError(f"leds[{k}]: ID {i} is not in the plan (IDs there run {site.ids.min()}..{site.ids.max()}); "
                              "check the decoding, or that this plan is the site's")
     snap = snap.ideal()
+    if snap.gravity is not None:  # the gravity-aided receiver: two-LED window, two points plus gravity
+        from planner.positioning.gravity import identify_gravity
+
+        return identify_gravity(site, snap, max_residual_px)
     found = identify(site, snap, max_residual_px)
     if method == "perspective":
         return found

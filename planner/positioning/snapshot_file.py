@@ -5,7 +5,13 @@ corner, full axis lengths, major-axis angle from the image x axis in degrees::
 
     {"camera": {"fx": 4250.0, "fy": 4250.0, "cx": 2000.0, "cy": 1500.0, "width": 4000, "height": 3000,
                 "lens": "pinhole", "distortion": [-0.2, 0.05]},
-     "leds": [{"id": 5, "ellipse": {"cx": 2100.3, "cy": 1400.2, "major": 60.1, "minor": 50.2, "angle_deg": 30.0}}]}
+     "leds": [{"id": 5, "ellipse": {"cx": 2100.3, "cy": 1400.2, "major": 60.1, "minor": 50.2, "angle_deg": 30.0}}],
+     "gravity": [0.05, -0.02, -0.99], "gravity_sigma_deg": 1.0}
+
+``gravity`` (optional) is the accelerometer's down direction in the camera frame (x right, y down
+the image, z along the optical axis; any length but zero); with it ``vlp-locate`` uses the
+gravity-aided receiver (:mod:`planner.positioning.gravity`), ``gravity_sigma_deg`` its uncertainty
+(default 1 deg).
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from planner._files import load_json
@@ -78,9 +85,13 @@ class ObservationFile(BaseModel):
 
     camera: _CameraFields
     leds: Annotated[list[_Led], Field(max_length=MAX_OBSERVED_LEDS)]
+    gravity: Annotated[list[Finite], Field(min_length=3, max_length=3)] | None = None
+    gravity_sigma_deg: Annotated[Positive, Field(le=45)] = 1.0
 
     @model_validator(mode="after")
     def _inside(self) -> ObservationFile:
+        if self.gravity is not None and math.hypot(*self.gravity) < 1e-9:
+            raise ValueError("gravity: the vector is zero; give the accelerometer's down direction in the camera frame")
         w, h = self.camera.width, self.camera.height
         for k, led in enumerate(self.leds):
             e = led.ellipse
@@ -97,9 +108,10 @@ def parse_snapshot(doc, where: str = "observation") -> Snapshot:
     camera = Camera(c.width, c.height, c.fx, c.fy if c.fy is not None else c.fx,
                     c.cx if c.cx is not None else c.width / 2, c.cy if c.cy is not None else c.height / 2,
                     lens=c.lens, distortion=tuple(c.distortion))
+    gravity = None if obs.gravity is None else np.array(obs.gravity) / math.hypot(*obs.gravity)
     return Snapshot(camera, [led.id for led in obs.leds],
                     [Ellipse(e.cx, e.cy, e.major, e.minor, math.radians(e.angle_deg) % math.pi)
-                     for e in (led.ellipse for led in obs.leds)])
+                     for e in (led.ellipse for led in obs.leds)], gravity, math.radians(obs.gravity_sigma_deg))
 
 
 def read_snapshot(path: str | Path) -> Snapshot:
@@ -119,4 +131,6 @@ def snapshot_document(snap: Snapshot) -> dict:
                                             "minor": round(e.minor, 3),
                                             "angle_deg": round(math.degrees(e.angle_rad), 3)}}
                  for i, e in zip(snap.ids, snap.ellipses)],
+        **({"gravity": [round(float(g), 6) for g in snap.gravity],
+            "gravity_sigma_deg": round(math.degrees(snap.gravity_sigma_rad), 6)} if snap.gravity is not None else {}),
     }

@@ -145,6 +145,14 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
             rows.append(("verdict", verdict(plan.advice.model_dump())))
     else:
         rows.append(("verification", "not verified (--no-verify)"))
+    if plan.receiver:  # --receiver gravity or auto: coverage per receiver mode planned
+        r = plan.receiver
+        modes = {"three": "three LEDs", "gravity": "two LEDs plus gravity"}
+        per = "; ".join(f"{modes.get(k, k)} {100 * float(c):.1f} %" for k, c in (r.get("coverage") or {}).items())
+        one = (r.get("poses_seeing") or {}).get("exactly_one_led")
+        rows.append(("receiver", f"{modes.get(str(r.get('mode')), r.get('mode'))} ({r.get('reason', '')}); sampled "
+                                 f"poses decodable by mode: {per}" + (f"; {100 * float(one):.1f} % of poses see exactly "
+                                                                      "one whole LED" if one is not None else "")))
     if acc and acc.located and acc.median_m is not None and acc.p90_m is not None:
         rows.append(("expected error", f"{acc.method} method: median {length_text(acc.median_m)}, 90 % "
                                        f"{length_text(acc.p90_m)} ({acc.located} of {acc.poses} poses located); "

@@ -2,8 +2,8 @@
 
 A pose's result names the first stage that failed:
 
-``blobs``     fewer than three of the LEDs wholly in view were found as blobs with an ellipse;
-``ids``       fewer than three IDs were read, or a misread ID spoilt identification;
+``blobs``     fewer than three (two for a gravity plan) of the LEDs wholly in view were found as blobs with an ellipse;
+``ids``       fewer than three (two) IDs were read, or a misread ID spoilt identification;
 ``identify``  the read LEDs were matched to no luminaires, to two places, or to the wrong ones;
 ``position``  identified right, but the position is off by more than the tolerance.
 
@@ -14,12 +14,14 @@ window is unique): the twin checks the pixels, not the plan's coverage.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
 from planner.camera import Camera, Poses, disc_dual_conic, project_discs_at
+from planner.defaults import ACCELEROMETER_SIGMA_DEG, CONGRUENCE_TOLERANCE_M
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from planner.ellipse import centre_and_shape
 from planner.errors import InputError, PlannerError
@@ -48,16 +50,34 @@ class Twin:
     camera: Camera
     sensor: Sensor = Sensor()
     outline: list | None = None
+    receiver: str = "three"  # or "gravity": two-LED windows, and the accelerometer's vertical
+    accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)
     video: VideoFormat | None = None  # frames read over several video frames (planner.twin.video)
 
     @classmethod
-    def from_plan(cls, plan: PlanFile, sensor: Sensor = Sensor()) -> Twin:
+    def from_plan(cls, plan: PlanFile, sensor: Sensor = Sensor(),
+                  accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG) -> Twin:
         chips = plan.frames
         if chips is None:
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
         return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), plan.camera_model(), sensor, plan.outline,
-                   VideoFormat.from_plan(plan))
+                   receiver=plan.receiver_mode, accelerometer_sigma_rad=math.radians(accelerometer_sigma_deg),
+                   video=VideoFormat.from_plan(plan))
+
+    @property
+    def window_leds(self) -> int:
+        """LEDs the receiver's window needs: 2 with gravity, else 3."""
+        return 2 if self.receiver == "gravity" else 3
+
+
+def accelerometer(rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
+    """The phone's measured down direction in the camera frame: the true one turned by a random
+    angle, each of its two components Gaussian with ``sigma_rad / sqrt 2`` (RMS error ``sigma_rad``)."""
+    g = rotation.T @ np.array([0.0, 0.0, -1.0])
+    perp = np.linalg.svd(g[None])[2][1:]
+    out = g + rng.normal(0.0, sigma_rad / math.sqrt(2), 2) @ perp
+    return out / np.linalg.norm(out)
 
 
 @dataclass(frozen=True)
@@ -118,12 +138,13 @@ def _through_lens(camera: Camera, ideal_px: np.ndarray, minor_px: np.ndarray) ->
 
 
 def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, blobs: list[Blob],
-          tolerance_m: float = TOLERANCE_M) -> PoseResult:
+          tolerance_m: float = TOLERANCE_M, gravity: np.ndarray | None = None) -> PoseResult:
     """Grade a decoded frame against the truth of its pose.
 
     Blobs are matched to any LED in front of the camera (a receiver may read an LED
     whose disc reaches into the sensor's outer half pixel, which the verification
-    counts as cut); ``seen`` and ``found`` count the LEDs wholly in view.
+    counts as cut); ``seen`` and ``found`` count the LEDs wholly in view. A gravity twin gives the
+    snapshot ``gravity`` (the accelerometer's reading), or draws one seeded by the pose.
     """
     index, centres, minor, whole = _truth(twin, position, rotation)
     owner = {}  # blob number -> luminaire index
@@ -140,10 +161,16 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
     base = _Counted(position=position, angles_deg=tuple(angles_deg), seen=len(whole), found=found, read=read,
                 misread=len(wrong), blobs=blobs)
     misread = "; ".join(f"{twin.site.names[i]} (ID {twin.site.ids[i]}) read as {blobs[b].id}" for b, i in wrong)
-    if found < 3:
+    need = twin.window_leds
+    if found < need:
         return PoseResult(**base, error_m=np.nan, stage="blobs", detail=f"{found} of {len(whole)} LEDs found")
     snap = snapshot(blobs, twin.camera)
-    if len(snap.ids) < 3:
+    if twin.receiver == "gravity":
+        if gravity is None:
+            gravity = accelerometer(rotation, twin.accelerometer_sigma_rad,
+                                    np.random.default_rng(np.frombuffer(np.asarray(position, float).tobytes(), np.uint32)))
+        snap = replace(snap, gravity=gravity, gravity_sigma_rad=twin.accelerometer_sigma_rad)
+    if len(snap.ids) < need:
         problems = sorted({b.problem for b in blobs if b.id is None and b.problem})
         return PoseResult(**base, error_m=np.nan, stage="ids", detail=f"{len(snap.ids)} IDs read ({'; '.join(problems)})")
     try:
@@ -170,7 +197,8 @@ def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg,
                          position, rotation, twin.sensor, rng)
     blobs = decode_frame(frame.image, twin.camera, twin.modulation, blur_px=twin.sensor.blur_px,
                          exposure_s=twin.sensor.exposure_s)
-    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frame
+    gravity = accelerometer(rotation, twin.accelerometer_sigma_rad, rng) if twin.receiver == "gravity" else None
+    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m, gravity), frame
 
 
 def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
@@ -184,8 +212,15 @@ def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
     per_m2 = 3.0 * count / max(area_m2(area), 1e-6)
     for _ in range(6):
         poses = sample_poses(area, twin.camera, per_m2, seed)
-        obs = observe_poses(poses, xyz, twin.site.radii, twin.camera, per_m2=per_m2, seed=seed)
-        status = classify(obs, twin.site.ids).status
+        if twin.receiver == "gravity":
+            from planner.verify.pair_windows import classify_pairs, find_pairs
+
+            pp = find_pairs(poses, xyz, twin.site.radii, twin.camera)
+            status = classify_pairs(poses.position, pp, xyz, twin.site.ids, per_m2=per_m2, seed=seed,
+                                    tolerance_m=CONGRUENCE_TOLERANCE_M).status
+        else:
+            obs = observe_poses(poses, xyz, twin.site.radii, twin.camera, per_m2=per_m2, seed=seed)
+            status = classify(obs, twin.site.ids).status
         good = np.flatnonzero(status == DECODABLE)
         if len(good) >= count:
             pick = np.sort(np.random.default_rng(seed).choice(good, count, replace=False))

@@ -1,0 +1,153 @@
+"""Two LEDs plus gravity: the gravity-aided receiver's fix and identification.
+
+The accelerometer gives the vertical in the camera frame to about a degree (the paper does not
+use it; docs/positioning.md says why we do). With the tilt known, the bearings to two LEDs on a
+horizontal ceiling fix the rest: level the rays (turn gravity onto ``-z``), and each ray meets the
+ceiling at ``s (x_i/z_i, y_i/z_i)`` from the camera in a frame turned by the unknown yaw ``ψ``,
+``s`` the ceiling's height above the camera. The LEDs' known plan offset ``d = x_b - x_a`` equals
+``s R(ψ) (o_b - o_a)``, so ``s = |d| / |o_b - o_a|`` and ``ψ`` is the angle between the two; then
+the camera's plan position is ``x_a - s R(ψ) o_a`` and its height ``z_a - s``. That start is refined
+by least squares over the full pose on every identified LED's exact image against its ellipse
+(centre and shape, whitened by one pixel: the ellipses' sizes also measure the distance) and on
+the measured gravity (whitened by its uncertainty), so the gravity error is weighed, not trusted.
+Rays come from :meth:`planner.camera.Camera.rays`, so a distorting lens is handled.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from planner.camera import Camera
+from planner.defaults import ACCELEROMETER_SIGMA_DEG, MAX_RESIDUAL_PX
+from planner.ellipse import Ellipse
+from planner.errors import PositioningError
+from planner.positioning.fix import Fix, observed, residuals_batch, rms
+from planner.positioning.undistort import ideal_ellipses
+
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+def levelling(gravity_cam: np.ndarray) -> np.ndarray:
+    """A camera-to-level rotation (3 x 3) that turns the measured gravity onto ``-z`` (yaw arbitrary)."""
+    up = -np.asarray(gravity_cam, float) / np.linalg.norm(gravity_cam)
+    seed = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = seed - up * (seed @ up)
+    x /= np.linalg.norm(x)
+    return np.vstack([x, np.cross(up, x), up])
+
+
+def two_point_pose(xyz2: np.ndarray, rays2: np.ndarray, gravity_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Camera centre [m] and camera-to-site rotation from two LEDs (2 x 3 [m]), their unit rays
+    (2 x 3, camera frame) and gravity in the camera frame: the closed form of the module docstring."""
+    level = levelling(gravity_cam)
+    v = rays2 @ level.T
+    if np.any(v[:, 2] <= 1e-9):
+        raise PositioningError("an LED's ray points below the horizon given gravity: no fix from this pair")
+    o = v[:, :2] / v[:, 2:3]
+    d_img, d_site = o[1] - o[0], xyz2[1, :2] - xyz2[0, :2]
+    if np.linalg.norm(d_img) < 1e-9:
+        raise PositioningError("the two LEDs are seen along one ray: no fix from this pair")
+    s = np.linalg.norm(d_site) / np.linalg.norm(d_img)
+    yaw = math.atan2(d_site[1], d_site[0]) - math.atan2(d_img[1], d_img[0])
+    turn = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+    position = np.r_[xyz2[0, :2] - s * (turn[:2, :2] @ o[0]), xyz2[0, 2] - s]
+    return position, turn @ level
+
+
+def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
+                   ellipses: list[Ellipse], gravity_cam: np.ndarray, sigma_rad: float,
+                   camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least squares over the pose on every LED's exact image against its ellipse (centre and shape,
+    whitened by one pixel; ellipses undistorted by
+    :func:`planner.positioning.undistort.ideal_ellipses`) and on gravity (whitened by
+    ``sigma_rad``). Returns the position, rotation and the ellipses' RMS residual [px]."""
+    undistorted, ideal = ideal_ellipses(ellipses, camera)
+    centres, shapes = observed(undistorted)
+    g = np.asarray(gravity_cam, float) / np.linalg.norm(gravity_cam)
+    args = (rotation, xyz, radii, centres, shapes, ideal)
+
+    def fun(x):
+        rot = rotation @ Rotation.from_rotvec(x[:3]).as_matrix()
+        return np.r_[residuals_batch(x[None], *args)[0], np.cross(g, rot.T @ DOWN) / max(sigma_rad, 1e-9)]
+
+    fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], method="lm", x_scale="jac")
+    rot = rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
+    return fit.x[3:], rot, rms(fit.fun[:-3])
+
+
+def locate_gravity(xyz: np.ndarray, radii: np.ndarray, ellipses, camera: Camera, gravity_cam: np.ndarray,
+                   sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)) -> Fix:
+    """Camera pose from two or more identified LEDs (``xyz`` N x 3 [m]), their ellipses and gravity
+    (camera frame, pointing down); the first two LEDs give the closed-form start."""
+    xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
+    if len(xyz) < 2:
+        raise PositioningError(f"{len(xyz)} usable LED{'s' if len(xyz) != 1 else ''}: a fix with gravity needs two")
+    ellipses = list(ellipses)
+    rays = camera.rays(np.array([e.centre for e in ellipses]))
+    position, rotation = two_point_pose(xyz[:2], rays[:2], gravity_cam)
+    position, rotation, residual = refine_gravity(position, rotation, xyz, radii, ellipses, gravity_cam, sigma_rad,
+                                                  camera)
+    return Fix(position, rotation, residual, "gravity", np.arange(len(xyz)))
+
+
+def window_order(centres_px: np.ndarray, camera: Camera) -> np.ndarray:
+    """LED indices by the angle of their ray from the optical axis, smallest first (the two-LED window's rule)."""
+    return np.argsort(-camera.rays(np.asarray(centres_px, float))[:, 2], kind="stable")
+
+
+def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
+    """The one place whose luminaires explain the snapshot, from its two-LED window and gravity.
+
+    Every pair of luminaires carrying the window's two IDs is tried: closed form, the other LEDs
+    matched to the same-ID luminaire imaged nearest, a refined fix on all of them; a place counts
+    when that fix explains every ellipse within ``max_residual_px``. Exactly one must remain.
+    """
+    from planner.positioning.locate import Located, _complete, _fmt
+
+    if snap.gravity is None:
+        raise PositioningError("the snapshot has no gravity: the two-LED receiver needs the accelerometer's vertical")
+    cam, n = snap.camera, len(snap.ids)
+    if n < 2:
+        raise PositioningError(f"{n} LED{'s' if n != 1 else ''} in the image: a position with gravity needs two")
+    centres = np.array([e.centre for e in snap.ellipses])
+    first, second = (int(k) for k in window_order(centres, cam)[:2])
+    rays = cam.rays(centres)
+    found, tried, best_rejected = [], set(), np.inf
+    for a in np.flatnonzero(site.ids == snap.ids[first]):
+        for b in np.flatnonzero(site.ids == snap.ids[second]):
+            if a == b:
+                continue
+            try:  # the closed form, refined on the two (their images' sizes check the spacing)
+                start = two_point_pose(site.xyz[[a, b]], rays[[first, second]], snap.gravity)
+                position, rotation, _ = refine_gravity(*start, site.xyz[[a, b]], site.radii[[a, b]],
+                                                       [snap.ellipses[first], snap.ellipses[second]], snap.gravity,
+                                                       snap.gravity_sigma_rad, cam)
+            except PositioningError:
+                continue
+            lum = _complete(site, snap, [first, second], (a, b), position, rotation)
+            if lum is None or len(set(lum.tolist())) < n or tuple(lum) in tried:
+                continue
+            tried.add(tuple(lum))
+            order = [first, second] + [k for k in range(n) if k not in (first, second)]
+            fix = locate_gravity(site.xyz[lum[order]], site.radii[lum[order]], [snap.ellipses[k] for k in order],
+                                 cam, snap.gravity, snap.gravity_sigma_rad)
+            if fix.residual_px > max_residual_px:
+                best_rejected = min(best_rejected, fix.residual_px)
+            else:
+                found.append(Located(fix, lum))
+    if not found:
+        detail = f" (best fit {best_rejected:.1f} px RMS, limit {max_residual_px:g} px)" if np.isfinite(best_rejected) else ""
+        raise PositioningError(f"no place on the site explains the image with gravity: no luminaires with IDs "
+                               f"{snap.ids[first]} and {snap.ids[second]} are seen this way from any pose{detail}; "
+                               "check the decoded IDs, the camera intrinsics and the gravity vector")
+    if len(found) > 1:
+        one, two = found[0], found[1]
+        raise PositioningError(
+            f"the image fits two places: luminaires {', '.join(site.names[i] for i in one.luminaires)} "
+            f"at {_fmt(one.fix.position)} and {', '.join(site.names[i] for i in two.luminaires)} at "
+            f"{_fmt(two.fix.position)}; run vlp-verify on the plan, or include more LEDs in the image")
+    return found[0]

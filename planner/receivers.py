@@ -1,0 +1,135 @@
+"""Receiver modes: the paper's three-LED receiver, or two LEDs plus gravity; and which serves a site.
+
+``three`` is the paper's receiver (a window of three whole LEDs, :mod:`planner.verify.windows`).
+``gravity`` takes the accelerometer's vertical and a window of two (:mod:`planner.verify.pair_windows`,
+:mod:`planner.positioning.gravity`); its IDs are the pair code (:mod:`planner.codes.pair_code`) or
+the paper's, judged on the two-LED windows. ``auto`` plans the three-LED receiver and, where it
+decodes fewer than :data:`AUTO_GOAL` of the sampled poses, the gravity receiver too, and keeps the
+mode that decodes more poses (docs/schemes.md, "Receiver modes").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from planner.camera import Camera, disc_image_rows
+from planner.codes.assignment import Assignment, assign_paper
+from planner.codes.pair_code import assign_pairs
+from planner.codes.schemes import assign_unique
+from planner.errors import PlanningError
+from planner.graph import NeighbourGraph
+from planner.modulation import timing_per_m2
+from planner.verify.pair_proof import prove_pair_set
+from planner.verify.pair_windows import (
+    PosePairs,
+    check_pair_set,
+    classify_pairs,
+    find_pairs,
+    pair_lengths,
+    site_pairs,
+)
+from planner.verify.verify import Verification
+from planner.verify.windows import PoseSample, PoseWindows
+
+AUTO_GOAL = 0.9
+"""``--receiver auto`` plans the gravity receiver too where the three-LED one decodes fewer poses than this."""
+
+
+def seen_shares(windows: PoseWindows) -> dict:
+    """Shares of sampled poses by what they see: a three-LED window, two or more whole LEDs, exactly one."""
+    n = max(len(windows.seen), 1)
+    return {"three_led_window": round(float(windows.covered.sum()) / n, 6),
+            "two_or_more_leds": round(float((windows.seen >= 2).sum()) / n, 6),
+            "exactly_one_led": round(float((windows.seen == 1).sum()) / n, 6)}
+
+
+@dataclass(frozen=True)
+class ReceiverChoice:
+    """The mode a plan is made for, each planned mode's sampled coverage, and what the poses see."""
+
+    mode: str
+    coverage: dict[str, float]
+    seen: dict
+    reason: str
+    accelerometer_sigma_deg: float
+
+    def summary(self) -> dict:
+        return {"mode": self.mode, "coverage": {k: round(v, 6) for k, v in self.coverage.items()},
+                "poses_seeing": self.seen, "reason": self.reason,
+                **({"accelerometer_sigma_deg": self.accelerometer_sigma_deg} if self.mode == "gravity" else {})}
+
+
+def smallest_pair_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
+    """Rows of the smallest LED image in any two-LED window over the timing prefix of ``sample``."""
+    poses, _ = sample.first(timing_per_m2(sample.area))
+    pp = find_pairs(poses, xyz, radii, camera)
+    if not pp.covered.any():
+        raise PlanningError("no sampled camera pose sees two whole LEDs: no LED image to fit a frame into; "
+                            "check the luminaire spacing against the camera (docs/camera.md)")
+    sub = poses.subset(np.flatnonzero(pp.covered))
+    t = pp.pairs[pp.covered]
+    return float(disc_image_rows(sub.position, sub.rotation, xyz[t], radii[t], camera).min())
+
+
+def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, camera: Camera, sample: PoseSample, *,
+                 scheme: str, per_m2: float, seed: int, time_budget: float, tolerance_m: float,
+                 install_tolerance_m: float) -> tuple[Assignment, Verification, dict]:
+    """IDs for the gravity receiver under ``scheme`` (``auto``: the pair code or the paper's, fewer bits
+    that verifies; else unique), each verified on the sample's two-LED windows and the pair set."""
+    poses, _ = sample.first(per_m2)
+    pp: PosePairs = find_pairs(poses, xyz, radii, camera)
+    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, sample.area)
+    sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
+
+    def verified(a: Assignment) -> tuple[Assignment, Verification]:
+        v = classify_pairs(poses.position, pp, xyz, a.ids, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+        check = check_pair_set(xyz, a.ids, proof.pairs, sampled, tolerance_m=tolerance_m,
+                               install_tolerance_m=install_tolerance_m, reason=proof.reason, envelope=proof.envelope)
+        return a, replace(v, window_set=check)
+
+    made: dict[str, tuple[Assignment, Verification]] = {}
+    if scheme in ("window", "auto"):
+        if proof.pairs is not None:
+            design = proof.pairs
+        else:  # every site pair up to the longest sampled window (plus the tolerance): what the check checks
+            bound = float(pair_lengths(sampled, xyz).max()) + tolerance_m if len(sampled) else 0.0
+            design = site_pairs(xyz, bound)
+        made["window"] = verified(assign_pairs(xyz, graph, design, tolerance_m=tolerance_m, seed=seed,
+                                               proved=proof.complete))
+    if scheme in ("paper", "auto"):
+        made["paper"] = verified(assign_paper(xyz[:, :2], graph, time_budget=time_budget, seed=seed))
+    if scheme == "unique":
+        made["unique"] = verified(assign_unique(xyz[:, :2], graph))
+    if scheme == "auto":
+        clean = [k for k, (_, v) in made.items() if v.clean]
+        if clean:
+            chosen = min(clean, key=lambda k: (made[k][0].bits, k != "window"))
+        else:
+            made["unique"] = verified(assign_unique(xyz[:, :2], graph))
+            chosen = "unique"
+    else:
+        chosen = scheme
+    considered = {k: {"bits": a.bits, "ambiguous_poses": v.count(1),
+                      "window_set_conflicts": len(v.window_set.conflicts) if v.window_set else None}
+                  for k, (a, v) in made.items()}
+    assignment, verification = made[chosen]
+    return assignment, verification, considered
+
+
+def verify_gravity(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
+                   seed: int, tolerance_m: float, install_tolerance_m: float) -> Verification:
+    """A gravity plan verified anew (``vlp-verify``): sampled two-LED windows and the pair set, proved where
+    the pair proof completes (made from the luminaires and the camera, never read from the plan)."""
+    from planner.verify.windows import sample_poses, working_area
+
+    area = working_area(xyz[:, :2], outline)
+    poses = sample_poses(area, camera, per_m2, seed)
+    pp = find_pairs(poses, xyz, radii, camera)
+    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, area)
+    sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
+    v = classify_pairs(poses.position, pp, xyz, ids, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
+    return replace(v, window_set=check_pair_set(xyz, ids, proof.pairs, sampled, tolerance_m=tolerance_m,
+                                                install_tolerance_m=install_tolerance_m, reason=proof.reason,
+                                                envelope=proof.envelope))
