@@ -2,11 +2,11 @@
 
 A plan's coverage is the share of sampled poses that decode (``planner.verify``).
 Below :data:`COVERAGE_GOAL`, the planner tries changes an integrator can make
-(a wider camera profile, luminaires mounted higher, denser luminaires; a receiver mode
-once one is registered in :data:`RECEIVERS`), each alone and then two at a time,
-and measures each with the same sampled measure: the share of a coarse pose
-sample (:func:`advice_per_m2`) whose camera sees a window, i.e. three whole,
-non-collinear LEDs (the paper's rule, section 3). The IDs are designed afterwards
+(another receiver mode of :data:`RECEIVERS`, a wider camera profile, luminaires mounted
+higher, denser luminaires), each alone and then two at a time, and measures each with
+the same sampled measure: the share of a coarse pose sample (:func:`advice_per_m2`)
+whose camera sees a window of its receiver mode: three whole, non-collinear LEDs (the
+paper's rule, section 3), or two whole LEDs with gravity. The IDs are designed afterwards
 to make those windows unique, so this is the coverage a plan of the changed site
 can reach. Every figure is sampled, never proved. ``docs/advice.md``.
 """
@@ -24,6 +24,7 @@ import numpy as np
 from planner.camera import Camera
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2, fill_outline
+from planner.verify.pair_windows import find_pairs
 from planner.verify.windows import find_windows, sample_poses, working_area
 
 ADVICE_POSES_PER_M2 = 10.0
@@ -67,7 +68,16 @@ def window_coverage(site: Site, per_m2: float, seed: int) -> float:
     return float(find_windows(poses, site.xyz, site.radii, site.camera).covered.mean())
 
 
-RECEIVERS: dict[str, Callable[[Site, float, int], float]] = {"three": window_coverage}
+def pair_coverage(site: Site, per_m2: float, seed: int) -> float:
+    """Share of sampled poses that see two whole LEDs (the gravity receiver's window, ``planner.receivers``)."""
+    poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
+    return float(find_pairs(poses, site.xyz, site.radii, site.camera).covered.mean())
+
+
+WINDOW_WORDS = {"three": "three whole, non-collinear LEDs", "gravity": "two whole LEDs (with gravity)"}
+"""What a pose must see to decode, per receiver mode, as the summary and the report say it."""
+
+RECEIVERS: dict[str, Callable[[Site, float, int], float]] = {"three": window_coverage, "gravity": pair_coverage}
 """Coverage measure per receiver mode (``--receiver``); a mode registered here becomes a candidate change."""
 
 
@@ -103,13 +113,14 @@ class Advice:
     """The advice for one plan: its coverage, the goal, the changes tried and which reach the goal."""
 
     coverage: float  # the plan's verified (sampled) coverage
-    too_few: float  # share of the plan's sampled poses that see fewer than three whole LEDs
+    too_few: float  # share of the plan's sampled poses that see too few whole LEDs for the plan's receiver
     ambiguous: float  # share of the plan's sampled poses whose window reads like another triple
     goal: float
     baseline: float  # the site as planned, under the advice's measure
     rows: tuple[Row, ...]
     poses: int
     per_m2: float
+    receiver: str = "three"
 
     @property
     def usable(self) -> bool:
@@ -126,8 +137,8 @@ class Advice:
         return {"goal": self.goal, "usable_from": USABLE_COVERAGE, "usable": self.usable,
                 "coverage": round(self.coverage, 6), "too_few_leds": round(self.too_few, 4),
                 "ambiguous": round(self.ambiguous, 4), "meets_goal": self.coverage >= self.goal,
-                "method": "sampled", "measure": "share of sampled poses whose camera sees three whole, "
-                                                 "non-collinear LEDs",
+                "method": "sampled", "receiver": self.receiver,
+                "measure": f"share of sampled poses whose camera sees {WINDOW_WORDS[self.receiver]}",
                 "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
                 "baseline": round(self.baseline, 4), "changes": [r.summary() for r in self.rows],
                 "recommended": None if rec is None else self.rows.index(rec)}
@@ -258,7 +269,7 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float =
                 rows.append(best)
     rows.sort(key=lambda r: (not r.reaches, len(r.changes), -r.coverage if not r.reaches else 0))
     n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
-    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2)
+    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2, site.receiver)
 
 
 def verdict(advice: dict) -> str:
@@ -266,7 +277,8 @@ def verdict(advice: dict) -> str:
     cov, goal = 100 * advice["coverage"], 100 * advice["goal"]
     if not advice["usable"]:
         few, alike = 100 * advice.get("too_few_leds", 0.0), 100 * advice.get("ambiguous", 0.0)
-        why = (f"{few:.0f} % see fewer than three whole LEDs: the luminaires are too sparse for this camera"
+        seen = "two" if advice.get("receiver") == "gravity" else "three"
+        why = (f"{few:.0f} % see fewer than {seen} whole LEDs: the luminaires are too sparse for this camera"
                if few >= 50 else f"{alike:.0f} % are ambiguous under this scheme (--scheme auto avoids that)"
                if alike >= few else "poses fail near the walls or see collinear LEDs")
         return (f"NOT USABLE: only {cov:.1f} % of sampled poses decode (a usable plan needs "

@@ -285,7 +285,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     if verification is not None:
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
         share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
-        advice = advise(Site(xyz, radii, layout.outline, cam, filled=filled), verification.coverage, *share,
+        mode = receiver.mode if receiver is not None else "three"
+        advice = advise(Site(xyz, radii, layout.outline, cam, mode, filled), verification.coverage, *share,
                         goal=options.coverage_goal, seed=options.seed)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
 

@@ -291,7 +291,7 @@ def _print_advice(a: dict) -> None:
     print(f"  verdict  {verdict(a)}")
     if a["changes"]:
         print(f"  advice   what would reach {100 * a['goal']:.0f} % (sampled: {a['poses_per_candidate']} poses each, "
-              "share that see three whole LEDs):")
+              f"{a.get('measure', 'share of sampled poses whose camera sees three whole LEDs')}):")
         rows = table(a)
         w = max(len(r[0]) for r in rows)
         for change, cov, remark in rows:

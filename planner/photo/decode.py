@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from planner.camera import Camera
@@ -39,12 +38,11 @@ from planner.frame import decode_stream
 from planner.twin.receiver import (
     BORDER_PX,
     MIN_BLOB_PX,
-    THRESHOLD_SIGMA,
     FrameFormat,
-    _background,
     _fits_blob,
     _rim_points,
     _row_levels,
+    segment,
 )
 
 FIT_SHARE = 0.25
@@ -120,14 +118,7 @@ def chips_from_runs(values: np.ndarray, runs: np.ndarray, rows_per_chip: float) 
 def decode_photo(frame: np.ndarray, camera: Camera, modulation: FrameFormat, *, blur_px: float,
                  exposure_s: float) -> list[PhotoBlob]:
     """Every LED blob of ``frame`` (uint8, from :func:`~planner.photo.read.receiver_frame`), largest first."""
-    level, noise = _background(frame)
-    threshold = level + max(THRESHOLD_SIGMA * noise, 16.0)
-    rows_per_chip = 1.0 / (modulation.chip_rate_hz * camera.row_time_s)
-    gap = (modulation.code.max_run + 1) * rows_per_chip + exposure_s / camera.row_time_s + 4 * blur_px + 2
-    mask = (frame > threshold).astype(np.uint8)
-    kernel = np.ones((2 * math.ceil(gap / 2) + 1, 1), np.uint8)
-    closed = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    level, threshold, rows_per_chip, gap, count, labels, stats = segment(frame, camera, modulation, blur_px, exposure_s)
     blobs = []
     for k in sorted(range(1, count), key=lambda k: -int(stats[k][4])):
         if stats[k][4] >= MIN_BLOB_PX:

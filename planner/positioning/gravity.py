@@ -106,7 +106,7 @@ def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
     matched to the same-ID luminaire imaged nearest, a refined fix on all of them; a place counts
     when that fix explains every ellipse within ``max_residual_px``. Exactly one must remain.
     """
-    from planner.positioning.locate import Located, _complete, _fmt
+    from planner.positioning.locate import Located, _complete, only_place
 
     if snap.gravity is None:
         raise PositioningError("the snapshot has no gravity: the two-LED receiver needs the accelerometer's vertical")
@@ -139,15 +139,5 @@ def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
                 best_rejected = min(best_rejected, fix.residual_px)
             else:
                 found.append(Located(fix, lum))
-    if not found:
-        detail = f" (best fit {best_rejected:.1f} px RMS, limit {max_residual_px:g} px)" if np.isfinite(best_rejected) else ""
-        raise PositioningError(f"no place on the site explains the image with gravity: no luminaires with IDs "
-                               f"{snap.ids[first]} and {snap.ids[second]} are seen this way from any pose{detail}; "
-                               "check the decoded IDs, the camera intrinsics and the gravity vector")
-    if len(found) > 1:
-        one, two = found[0], found[1]
-        raise PositioningError(
-            f"the image fits two places: luminaires {', '.join(site.names[i] for i in one.luminaires)} "
-            f"at {_fmt(one.fix.position)} and {', '.join(site.names[i] for i in two.luminaires)} at "
-            f"{_fmt(two.fix.position)}; run vlp-verify on the plan, or include more LEDs in the image")
-    return found[0]
+    return only_place(site, found, best_rejected, max_residual_px, " with gravity",
+                      f"{snap.ids[first]} and {snap.ids[second]}", "the camera intrinsics and the gravity vector")

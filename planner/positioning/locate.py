@@ -140,11 +140,18 @@ def identify(site: Site, snap: Snapshot, max_residual_px: float = MAX_RESIDUAL_P
                     best_rejected = min(best_rejected, fix.residual_px)
                 else:
                     found.append(Located(fix, lum))
+    return only_place(site, found, best_rejected, max_residual_px, "", ", ".join(map(str, snap.ids)),
+                      "the camera intrinsics")
+
+
+def only_place(site: Site, found: list[Located], best_rejected: float, max_residual_px: float, how: str,
+               ids: str, check: str) -> Located:
+    """The one fix in ``found``; :class:`PositioningError` naming the IDs (``ids``) and what to ``check``
+    when none fits, or both places when two do. ``how`` says how the image was read (" with gravity")."""
     if not found:
         detail = f" (best fit {best_rejected:.1f} px RMS, limit {max_residual_px:g} px)" if np.isfinite(best_rejected) else ""
-        raise PositioningError(f"no place on the site explains the image: no luminaires with IDs "
-                               f"{', '.join(map(str, snap.ids))} are seen this way from any pose{detail}; "
-                               "check the decoded IDs and the camera intrinsics")
+        raise PositioningError(f"no place on the site explains the image{how}: no luminaires with IDs "
+                               f"{ids} are seen this way from any pose{detail}; check the decoded IDs and {check}")
     if len(found) > 1:
         a, b = found[0], found[1]
         raise PositioningError(

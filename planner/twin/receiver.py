@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import cv2
 import numpy as np
@@ -205,9 +205,21 @@ def chips_from_levels(levels: np.ndarray, rows_per_chip: float) -> str:
     return "".join(out)
 
 
-def decode_frame(image: np.ndarray, camera: Camera, modulation: FrameFormat, *,
-                 blur_px: float = 1.0, exposure_s: float = 0.0) -> list[Blob]:
-    """Every LED blob in ``image`` (uint8, height x width) with its ellipse and, where readable, its ID."""
+class Segments(NamedTuple):
+    """Step 1's blobs: the ceiling's level and the lit threshold [DN], rows per chip, the longest dark gap
+    closed [rows], and OpenCV's connected components (how many, label image, stats rows x, y, w, h, area)."""
+
+    level: float
+    threshold: float
+    rows_per_chip: float
+    gap_rows: float
+    components: int
+    labels: np.ndarray
+    stats: np.ndarray
+
+
+def segment(image: np.ndarray, camera: Camera, modulation: FrameFormat, blur_px: float, exposure_s: float) -> Segments:
+    """Step 1: threshold ``image`` above its dark ceiling and close the stripes' dark gaps vertically."""
     level, noise = _background(image)
     threshold = level + max(THRESHOLD_SIGMA * noise, 16.0)
     rows_per_chip = 1.0 / (modulation.chip_rate_hz * camera.row_time_s)
@@ -217,6 +229,13 @@ def decode_frame(image: np.ndarray, camera: Camera, modulation: FrameFormat, *,
     # Outside the image is dark: without a zero border, closing would stretch blobs near the edge to it.
     closed = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
     count, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    return Segments(level, threshold, rows_per_chip, gap, count, labels, stats)
+
+
+def decode_frame(image: np.ndarray, camera: Camera, modulation: FrameFormat, *,
+                 blur_px: float = 1.0, exposure_s: float = 0.0) -> list[Blob]:
+    """Every LED blob in ``image`` (uint8, height x width) with its ellipse and, where readable, its ID."""
+    level, threshold, rows_per_chip, _, count, labels, stats = segment(image, camera, modulation, blur_px, exposure_s)
     height, width = image.shape
     blobs = []
     for k in range(1, count):

@@ -119,8 +119,9 @@ def proved_view(camera: Camera) -> None:
             raise NotProvable("the view rectangle is not proved to lie on the sensor (lens distortion)")
 
 
-def envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> Envelope:
-    """The proof's envelope for this site and camera; :class:`NotProvable` says why there is none."""
+def ceiling_distances(camera: Camera, xyz: np.ndarray, radii: np.ndarray) -> tuple[float, float, float, float]:
+    """The ceiling plane's height, its nearest and farthest distance above the receiver, and the largest LED
+    radius [m], for any proof's envelope; :class:`NotProvable` where the site or camera allows none."""
     z = xyz[:, 2]
     if np.ptp(z) >= SAME_HEIGHT_M:
         raise NotProvable(f"the luminaires are not on one ceiling plane (heights {z.min():.3f}-{z.max():.3f} m)")
@@ -131,6 +132,12 @@ def envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_toleran
     r = float(np.max(radii))
     if near <= r:
         raise NotProvable(f"the receiver may come within {near:.2f} m of the ceiling, inside an LED's radius")
+    return ceiling, near, far, r
+
+
+def envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float) -> Envelope:
+    """The proof's envelope for this site and camera; :class:`NotProvable` says why there is none."""
+    ceiling, near, far, r = ceiling_distances(camera, xyz, radii)
     proved_view(camera)
     f = camera.fx_px
     u0, u1, v0, v1 = camera.view_px  # the sensor itself without distortion

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.camera import Camera
-from planner.verify.envelope import Envelope, NotProvable
+from planner.verify.envelope import Envelope, NotProvable, ceiling_distances
 from planner.verify.proof import (  # the three-LED proof's geometric tests: they take any pair and LEDs
     MIN_CELL_M,
     NEAR,
@@ -39,7 +39,6 @@ from planner.verify.proof import (  # the three-LED proof's geometric tests: the
     _spindle_count,
     _strip,
 )
-from planner.verify.window_set import SAME_HEIGHT_M
 
 SEARCH_BUDGET = 3_000
 """Most pairs whose axis points are searched by cells (about 14 ms each, measured on grid-32);
@@ -202,16 +201,7 @@ def pair_envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_to
     """The pair proof's envelope: the three-LED proof's where that exists, with the lens's angles from
     :meth:`~planner.camera.Camera.rays` (edge middles and corners: a radial lens's extremes), the sure cone
     narrowed to :data:`SURE_CAP_RAD` less the tilt, and reach bounded by the site; :class:`NotProvable` else."""
-    z = xyz[:, 2]
-    if np.ptp(z) >= SAME_HEIGHT_M:
-        raise NotProvable(f"the luminaires are not on one ceiling plane (heights {z.min():.3f}-{z.max():.3f} m)")
-    if abs(camera.fx_px - camera.fy_px) > 1e-9 * camera.fx_px:
-        raise NotProvable("the camera's pixels are not square (fx != fy)")
-    ceiling = float(np.median(z))
-    near, far = ceiling - camera.max_height_m, ceiling - camera.min_height_m
-    r = float(np.max(radii))
-    if near <= r:
-        raise NotProvable(f"the receiver may come within {near:.2f} m of the ceiling, inside an LED's radius")
+    ceiling, near, far, r = ceiling_distances(camera, xyz, radii)
     w, h, cx, cy = float(camera.width_px), float(camera.height_px), camera.cx_px, camera.cy_px
 
     def angle(px):

@@ -18,11 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.camera import Camera, Poses, project_discs
+from planner.camera import Camera, Poses
 from planner.verify.verify import AMBIGUOUS, DECODABLE, TOO_FEW, Verification, WindowSetCheck
-from planner.verify.windows import CANDIDATES
-
-_BATCH = 20000
+from planner.verify.windows import nearest_seen
 
 
 @dataclass(frozen=True)
@@ -43,27 +41,7 @@ class PosePairs:
 
 def find_pairs(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PosePairs:
     """Every pose's two-LED window: the two wholly seen LEDs at the smallest angle from the axis."""
-    n = len(xyz)
-    k = min(CANDIDATES, n)
-    tree = cKDTree(xyz[:, :2])
-    ceiling = float(np.median(xyz[:, 2]))
-    pairs = np.full((len(poses), 2), -1, dtype=np.int64)
-    seen = np.zeros(len(poses), dtype=np.int64)
-    for start in range(0, len(poses), _BATCH):
-        part = poses.subset(slice(start, start + _BATCH))
-        axis = part.rotation[:, :, 2]
-        reach = (ceiling - part.position[:, 2]) / np.maximum(axis[:, 2], 1e-6)
-        _, cand = tree.query(part.position[:, :2] + reach[:, None] * axis[:, :2], k=k)
-        cand = cand.reshape(len(part), k)
-        img = project_discs(part, xyz[cand], radii[cand], camera)
-        rel = xyz[cand] - part.position[:, None, :]
-        cos_angle = img["depth"] / np.linalg.norm(rel, axis=2)  # cosine of the angle from the axis
-        key = np.where(img["inside"], -cos_angle, np.inf)
-        order = np.argsort(key, axis=1, kind="stable")[:, :2]
-        nearest = np.take_along_axis(cand, order, axis=1)
-        ok = np.isfinite(np.take_along_axis(key, order, axis=1)).all(axis=1)
-        seen[start:start + len(part)] = img["inside"].sum(axis=1)
-        pairs[start:start + len(part)][ok] = np.sort(nearest[ok], axis=1)
+    pairs, seen = nearest_seen(poses, xyz, radii, camera, 2)
     return PosePairs(pairs, seen)
 
 

@@ -147,17 +147,19 @@ def flatness(p: np.ndarray) -> np.ndarray:
         return np.where(longest2 > 0, twice_area / longest2, 0.0)
 
 
-def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
-    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre.
+def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera, count: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` wholly seen LEDs nearest the image centre at every pose, (P, count) luminaire indices
+    ascending (-1 where fewer are seen), and how many LEDs are wholly seen (P,) among those examined.
 
-    Through a distorting lens "fully seen" is inside ``camera.view_px`` and "nearest" is by the ray
+    Through a distorting lens "wholly seen" is inside ``camera.view_px`` and "nearest" is by the ray
     angle from the optical axis (ideal pixels from :func:`planner.camera.project_discs`; docs/verification.md).
     """
     n = len(xyz)
     k = min(CANDIDATES, n)
     tree = cKDTree(xyz[:, :2])
     ceiling = float(np.median(xyz[:, 2]))
-    triples = np.full((len(poses), 3), -1, dtype=np.int64)
+    chosen = np.full((len(poses), count), -1, dtype=np.int64)
     seen = np.zeros(len(poses), dtype=np.int64)
     for start in range(0, len(poses), _BATCH):
         part = poses.subset(slice(start, start + _BATCH))
@@ -169,11 +171,17 @@ def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
         img = project_discs(part, xyz[cand], radii[cand], camera)
         dist2 = (img["u"] - camera.cx_px) ** 2 + (img["v"] - camera.cy_px) ** 2
         dist2 = np.where(img["inside"], dist2, np.inf)
-        order = np.argsort(dist2, axis=1, kind="stable")[:, :3]
+        order = np.argsort(dist2, axis=1, kind="stable")[:, :count]
         nearest = np.take_along_axis(cand, order, axis=1)
         ok = np.isfinite(np.take_along_axis(dist2, order, axis=1)).all(axis=1)
         seen[start:start + len(part)] = img["inside"].sum(axis=1)
-        triples[start:start + len(part)][ok] = np.sort(nearest[ok], axis=1)
+        chosen[start:start + len(part)][ok] = np.sort(nearest[ok], axis=1)
+    return chosen, seen
+
+
+def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
+    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre (:func:`nearest_seen`)."""
+    triples, seen = nearest_seen(poses, xyz, radii, camera, 3)
     collinear = np.zeros(len(poses), dtype=bool)
     has = triples[:, 0] >= 0
     collinear[has] = flatness(xyz[triples[has]]) < MIN_FLATNESS

@@ -44,12 +44,13 @@ def test_recommended_change_applied_reaches_the_goal(tmp_path):
     assert after["advice"]["usable"] and after["advice"]["meets_goal"] and after["advice"]["changes"] == []
 
 
-def test_outline_room_advice_needs_a_wider_lens_and_more_luminaires():
+def test_outline_room_advice_needs_two_changes_and_the_gravity_receiver_is_one():
     """The README's 2 m lattice: no single change tried reaches 90 %; the recommended pair does, on the
-    advice's sample and on a sample as dense as the plan's."""
+    advice's sample and on a sample as dense as the plan's. The gravity receiver is a candidate (it needs
+    two whole LEDs, not three) and is in the recommended pair, beside a wider lens."""
     import numpy as np
 
-    from planner.advice import Site, advise, window_coverage
+    from planner.advice import RECEIVERS, Site, advise
     from planner.camera import Camera
     from planner.pipeline import read_layout
 
@@ -58,12 +59,15 @@ def test_outline_room_advice_needs_a_wider_lens_and_more_luminaires():
                 Camera(), filled=True)
     advice = advise(site, 0.0)
     rec = advice.recommended
-    assert rec is not None and len(rec.changes) == 2 and {c.knob for c in rec.changes} == {"camera", "density"}
+    assert rec is not None and len(rec.changes) == 2 and {c.knob for c in rec.changes} == {"camera", "receiver"}
     assert all(not r.reaches for r in advice.rows if len(r.changes) == 1)
     changed = site
     for c in rec.changes:
         changed = c.apply(changed)
-    assert window_coverage(changed, 100.0, seed=1) >= 0.9  # a fresh, denser sample agrees
+    assert changed.receiver == "gravity"
+    assert RECEIVERS["gravity"](changed, 100.0, 1) >= 0.9  # a fresh, denser sample agrees
+    assert RECEIVERS["three"](changed, 100.0, 1) < 0.9  # the three-LED receiver with that lens does not reach it
+    assert advice.summary()["measure"].endswith("three whole, non-collinear LEDs")  # the plan's own mode
 
 
 def _readme_commands() -> list[list[str]]:
