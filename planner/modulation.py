@@ -125,8 +125,8 @@ def choose_timing(frame_len: int, max_run: int, rows: float, row_time_s: float, 
         f"no chip rate fits: a frame of {frame_len} chips must fit in the smallest LED image "
         f"({rows:.1f} rows x {row_time_s * 1e6:g} us = {image_s * 1e3:.3f} ms), so >= {fit:,.0f} Hz, and flicker "
         f"needs >= {flicker:,.0f} Hz; but a chip must span {ROWS_PER_CHIP:g} rows (<= {resolution:,.0f} Hz) and the "
-        f"driver switches at most {driver_max_hz:,.0f} Hz; use larger or closer LEDs, a camera with a faster row "
-        "time, a faster driver, or fewer bits")
+        f"driver switches at most {driver_max_hz:,.0f} Hz; use larger or closer LEDs, a faster driver, a camera "
+        "with a longer row time (against the driver's limit; the 2-row limit scales with it), or fewer bits")
 
 
 @dataclass(frozen=True)
