@@ -122,6 +122,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),
+        "luminaire_count": len(lay.luminaires),  # written before the list: a file cut short is caught
         "luminaires": plan.entries(),
     }
 

@@ -237,11 +237,15 @@ class PlanFile(_Section):
     modulation: ModulationFields | None = None
     accuracy: Accuracy | None = None
     outline: list[tuple[Coordinate, Coordinate]] | None = None
+    luminaire_count: Annotated[Count, Field(ge=1)] | None = None  # absent in plans written before 2026-12-03
     luminaires: Annotated[list[Entry], Field(min_length=1, max_length=1_000_000)]
 
     @model_validator(mode="after")
     def _consistent(self) -> PlanFile:
         names = [e.name for e in self.luminaires]
+        if self.luminaire_count is not None and self.luminaire_count != len(names):
+            raise ValueError(f"luminaire_count says {self.luminaire_count} luminaires but {len(names)} are listed: "
+                             "the file was cut short or edited")
         if len(set(names)) != len(names):
             counts = Counter(names)  # one pass: a million names stay cheap
             dup = next(n for n in names if counts[n] > 1)

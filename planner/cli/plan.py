@@ -207,7 +207,8 @@ def main(argv: list[str] | None = None) -> int:
         assert v.window_set is not None  # no ambiguous pose, so the window set is what is not clean
         first = v.window_set.conflicts[0]
         names = [lum.name for lum in plan.layout.luminaires]
-        print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} windows of the window set read like "
+        shape = "pairs" if plan.receiver is not None and plan.receiver.mode == "gravity" else "triangles"
+        print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} {shape} that may be windows read like "
               f"other luminaires under the {plan.assignment.scheme} scheme, first "
               + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
               file=sys.stderr)

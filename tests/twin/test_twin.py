@@ -121,12 +121,13 @@ def test_300_covered_poses_decode_and_locate(plan512):
     twin = Twin.from_plan(doc)
     poses = covered_poses(twin, 300, seed=0)
     assert np.degrees(poses.tilt_rad).max() > 35 and np.degrees(poses.tilt_rad).max() <= 40
-    from planner.cli.twin import run_batch
+    from planner.cli.twin import build_parser, run_batch
 
-    class Args:
-        poses, seed, jobs, max_error, save_failures = 300, 0, 2, 0.10, None
+    # the command's own flags and defaults (a flag added later reaches the batch without editing this test)
+    args = build_parser().parse_args([str(plan512), "--poses", "300", "--seed", "0", "--jobs", "2",
+                                "--max-error", "0.10"])
 
-    results = run_batch(doc, Args, twin.sensor)
+    results = run_batch(doc, args, twin.sensor)
     s = summary(results)
     assert s["success_rate"] >= 0.99, [r.detail for r in results if not r.ok]
     assert s["error_m"]["max"] < 0.10
