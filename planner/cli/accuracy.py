@@ -37,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
     p.add_argument("--seed", type=cli.seed, default=0, help="random seed (default 0)")
     p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (default: no plot)")
+    cli.add_camera_flag(p, "the phone on the rig; default: the paper's camera (its tilts and heights are the rig's)")
     cli.add_error_budget_flags(p, "the experiment")
     cli.common_flags(p, "print the figures as JSON instead of the table")
     return p
@@ -57,10 +58,11 @@ def main(argv: list[str] | None = None) -> int:
     tilts = _tilts(args.tilts)
     cdf = cli.output_file("--cdf", args.cdf)
     terms = cli.error_terms(args)
+    camera = cli.camera_from_args(args)
     from planner.positioning.accuracy import HAND_JITTER_DEG, budget_text, paper_budget, plot_cdf, stats_cm, table3_text
     from planner.positioning.error_terms import included_text
 
-    runs = paper_budget(tilts, args.trials, terms, args.radius, args.seed)
+    runs = paper_budget(tilts, args.trials, terms, args.radius, args.seed, camera)
     pixel = runs.get("edge", runs["exact"])
     if cdf is not None:
         write_atomically(cdf, lambda tmp: plot_cdf(runs["all"], tmp))
@@ -72,12 +74,15 @@ def main(argv: list[str] | None = None) -> int:
         finite = all(math.isfinite(v) for rs in runs.values() for r in rs for e in r.errors.values() for v in stats_cm(e))
         print(json.dumps({
             "assumptions": {"led_radius_m": args.radius, "trials": args.trials, "terms": terms.to_dict(),
+                            "camera": camera.to_dict(),
                             "includes": terms.active,
                             "hand_jitter_deg": dict(zip(("tilt", "azimuth", "roll"), HAND_JITTER_DEG))},
             "tilts": figures["all"], "pixel_only": [dict(t) for t in figures.get("edge", figures["exact"])],
             "budget": figures, "cdf": str(cdf) if cdf else None}, indent=2, allow_nan=not finite))
         return 0
-    print(f"vlp-accuracy: the paper's rig in simulation; LED radius {args.radius:g} m, 4000 x 3000 px at 50.4 deg, "
+    phone = camera.name or "the paper's camera"
+    print(f"vlp-accuracy: the paper's rig in simulation; LED radius {args.radius:g} m, {phone} "
+          f"{camera.width_px} x {camera.height_px} px at {math.degrees(camera.hfov_rad):.1f} deg, "
           f"16 points x {args.trials} trials, hand jitter +-{HAND_JITTER_DEG[0]:g}/{HAND_JITTER_DEG[1]:g}/"
           f"{HAND_JITTER_DEG[2]:g} deg (tilt/azimuth/roll)")
     print(f"all terms: {included_text(terms)}")

@@ -197,3 +197,15 @@ def test_a_plan_from_before_the_budget_says_its_figures_are_edge_noise_only():
     assert "median 0.06 mm" in rows["expected error"]
     assert "includes edge noise (0.5 px) only: install, calibration and motion errors come on top" in rows["expected error"]
     assert "error budget" not in rows and budget_rows(plan) == []
+
+
+def test_vlp_accuracy_takes_a_camera_profile():
+    """The rig with another phone: --camera NAME reaches the simulation (its field of view shows) and a wrong
+    name is one line, exit 2."""
+    run = subprocess.run(["vlp-accuracy", "--trials", "1", "--tilts", "0", "--pixel-noise-only", "--camera", "wide", "--json"],
+                  capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    doc = json.loads(run.stdout)
+    assert doc["assumptions"]["camera"]["name"] == "wide" and doc["assumptions"]["camera"]["distortion"]
+    bad = subprocess.run(["vlp-accuracy", "--camera", "nope"], capture_output=True, text=True)
+    assert bad.returncode == 2 and len(bad.stderr.splitlines()) == 1 and "profiles: paper" in bad.stderr
