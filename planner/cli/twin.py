@@ -27,6 +27,7 @@ from planner.errors import ExitCode, UsageError
 if TYPE_CHECKING:  # the stages (OpenCV, SciPy) load when the command runs, not when it parses
     import numpy as np
 
+    from planner.camera import Camera
     from planner.plan_file import PlanFile
     from planner.twin.render import Sensor
     from planner.twin.twin import PoseResult
@@ -53,6 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="worker processes for a batch (default: one per core)")
     g.add_argument("--save-failures", metavar="DIR", help="batch: write each failed pose's frame as PNG into DIR")
     g = p.add_argument_group("camera and sensor")
+    cli.add_camera_flag(g, "the phone that films the ceiling (a phone other than the plan's shows what it would "
+                        "read); default: the plan's camera")
     g.add_argument("--exposure-us", type=cli.positive_float, default=SENSOR_EXPOSURE_S * 1e6, metavar="US",
                    help=f"row exposure [us] (default {SENSOR_EXPOSURE_S * 1e6:g})")
     g.add_argument("--blur-px", type=float, default=SENSOR_BLUR_PX, metavar="PX",
@@ -85,10 +88,10 @@ def _sensor(args) -> Sensor:
 _WORKER: dict = {}
 
 
-def _init(plan: PlanFile, sensor: Sensor, tolerance_m: float, accelerometer_deg: float) -> None:
+def _init(plan: PlanFile, sensor: Sensor, tolerance_m: float, accelerometer_deg: float, camera: Camera) -> None:
     from planner.twin.twin import Twin
 
-    _WORKER.update(twin=Twin.from_plan(plan, sensor, accelerometer_deg), tolerance_m=tolerance_m)
+    _WORKER.update(twin=Twin.from_plan(plan, sensor, accelerometer_deg, camera), tolerance_m=tolerance_m)
 
 
 def _one(task) -> PoseResult:
@@ -122,14 +125,15 @@ def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
 
     from planner.twin.twin import Twin, covered_poses, run_pose
 
-    twin = Twin.from_plan(plan, sensor, args.accelerometer_deg)
+    camera = cli.camera_from_args(args, plan.camera_model())
+    twin = Twin.from_plan(plan, sensor, args.accelerometer_deg, camera)
     poses = covered_poses(twin, args.poses, args.seed)
     rotations = poses.rotation
     angles = np.degrees(np.column_stack([poses.tilt_rad, poses.azimuth_rad, poses.roll_rad]))
     tasks = [(k, args.seed, poses.position[k], rotations[k], tuple(angles[k])) for k in range(len(poses))]
     show = sys.stderr.isatty()
     results = []
-    init = (plan, sensor, args.max_error, args.accelerometer_deg)
+    init = (plan, sensor, args.max_error, args.accelerometer_deg, camera)
     stream: Iterator[PoseResult]
     if args.jobs == 1:
         _init(*init)
@@ -211,7 +215,7 @@ def _single(plan: PlanFile, args, sensor: Sensor) -> int:
     from planner.twin.twin import Twin, run_pose
 
     position, rotation = _pose(args.pose, "--pose")
-    twin = Twin.from_plan(plan, sensor, args.accelerometer_deg)
+    twin = Twin.from_plan(plan, sensor, args.accelerometer_deg, cli.camera_from_args(args, plan.camera_model()))
     angles = tuple(float(v) for v in args.pose.split(",")[3:])
     r, frame = run_pose(twin, position, rotation, angles, np.random.default_rng(args.seed), args.max_error)
     if args.png:

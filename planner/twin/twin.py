@@ -56,12 +56,14 @@ class Twin:
 
     @classmethod
     def from_plan(cls, plan: PlanFile, sensor: Sensor = Sensor(),
-                  accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG) -> Twin:
+                  accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG, camera: Camera | None = None) -> Twin:
+        """The plan's site, frames and receiver, seen by ``camera`` (default: the plan's own)."""
         chips = plan.frames
         if chips is None:
             raise InputError("the plan has no frames (no 'modulation', or luminaires without 'frame'); "
                              "make it again with this vlp-plan")
-        return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), plan.camera_model(), sensor, plan.outline,
+        return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), camera or plan.camera_model(), sensor,
+                   plan.outline,
                    receiver=plan.receiver_mode, accelerometer_sigma_rad=math.radians(accelerometer_sigma_deg),
                    video=VideoFormat.from_plan(plan))
 

@@ -151,6 +151,18 @@ def test_batch_command_reports_stages_and_exit_code(plan512, tmp_path, capsys):
     assert len(list((tmp_path / "fail").glob("pose-*-ids.png"))) == 4
 
 
+def test_another_phone_than_the_plans_sees_more_leds_and_reads_fewer_of_them(plan512, capsys):
+    """--camera: the 512 plan filmed by the ultra-wide profile (110 deg, 10 us rows) instead of the paper's
+    camera: ten times the LEDs in view, but most images are too small for a frame timed for the paper's."""
+    args = [str(plan512), "--poses", "4", "--jobs", "1", "--seed", "3", "--json"]
+    assert console_main(args) == 0
+    planned = json.loads(capsys.readouterr().out)
+    console_main([*args, "--camera", "ultrawide"])
+    other = json.loads(capsys.readouterr().out)
+    assert other["leds_in_view"] > 5 * planned["leds_in_view"]
+    assert other["ids_read"] < other["leds_in_view"] / 4 and planned["ids_read"] == planned["leds_in_view"]
+
+
 def test_usage_errors_are_one_line(plan512, capsys):
     assert console_main([str(plan512), "--png", "x.png"]) == 2
     assert console_main([str(plan512), "--pose", "1,2,3"]) == 2
