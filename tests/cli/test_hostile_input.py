@@ -248,7 +248,8 @@ def _plan_commands(path: Path, tmp: Path) -> list[tuple[object, list[str]]]:
 def _plan_variants(text: str) -> list[tuple[str, bytes]]:
     variants = [(f"cut-{k}", text[: len(text) * k // 10].encode()) for k in range(1, 10)]
     # cut cleanly between two luminaires: valid YAML, valid entries, one luminaire short (luminaire_count)
-    variants.append(("cut-at-entry", text[: text.rindex("\n- name: ") + 1].encode()))
+    if "\n- name: " in text:
+        variants.append(("cut-at-entry", text[: text.rindex("\n- name: ") + 1].encode()))
     return variants + [("latin1", text.replace("L01", "Lé1").encode("latin-1")), ("binary", bytes(range(256))),
                        ("empty", b""), ("list", b"[1, 2]\n")]
 
