@@ -133,12 +133,19 @@ def _rim_points(roi: np.ndarray, own: np.ndarray, threshold: float, level: float
     return np.stack([np.column_stack([left, rows]), np.column_stack([right, rows])], axis=1).reshape(-1, 2)
 
 
+def chord_rows(height: int, ellipse: Ellipse, y0: int, margin: float) -> np.ndarray:
+    """Rows of a region of interest starting at image row ``y0`` (``height`` rows) that the ellipse spans
+    at least ``margin`` rows inside its rim: the rows :func:`_row_levels` reads, in its order."""
+    cy = ellipse.cy - y0
+    half_h = math.sqrt(max((ellipse.shape @ ellipse.shape)[1, 1], 0.0))
+    return np.arange(max(0, math.ceil(cy - half_h + margin)), min(height, math.floor(cy + half_h - margin) + 1))
+
+
 def _row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: float) -> np.ndarray:
-    """Mean of the inner chord of every row the ellipse spans (NaN where the chord is too short)."""
+    """Mean of the inner chord of every row of :func:`chord_rows` (NaN where the chord is too short)."""
     q = np.linalg.inv(ellipse.shape @ ellipse.shape)
     cx, cy = ellipse.cx - x0, ellipse.cy - y0
-    half_h = math.sqrt(max((ellipse.shape @ ellipse.shape)[1, 1], 0.0))
-    rows = np.arange(max(0, math.ceil(cy - half_h + margin)), min(roi.shape[0], math.floor(cy + half_h - margin) + 1))
+    rows = chord_rows(roi.shape[0], ellipse, y0, margin)
     dy = rows - cy
     # q00 dx^2 + 2 q01 dx dy + q11 dy^2 = 1
     a, b, c = q[0, 0], 2 * q[0, 1] * dy, q[1, 1] * dy * dy - 1

@@ -33,7 +33,7 @@ import numpy as np
 from planner.camera import Camera
 from planner.errors import InputError
 from planner.frame import decode_stream
-from planner.twin.receiver import Blob, FrameFormat, _row_levels, decode_frame
+from planner.twin.receiver import Blob, FrameFormat, _row_levels, chord_rows, decode_frame
 from planner.twin.render import Frame, render_frame
 
 if TYPE_CHECKING:
@@ -90,9 +90,7 @@ def row_signal(image: np.ndarray, blob: Blob, blur_px: float) -> tuple[np.ndarra
     x0, y0 = max(0, x - pad), max(0, y - pad)
     roi = image[y0:min(image.shape[0], y + h + pad), x0:min(image.shape[1], x + w + pad)]
     levels = _row_levels(roi, blob.ellipse, x0, y0, margin)
-    half_h = math.sqrt(max((blob.ellipse.shape @ blob.ellipse.shape)[1, 1], 0.0))
-    first = max(0, math.ceil(blob.ellipse.cy - y0 - half_h + margin))  # the rows _row_levels reads
-    rows = y0 + first + np.arange(len(levels))
+    rows = y0 + chord_rows(roi.shape[0], blob.ellipse, y0, margin)
     ok = np.isfinite(levels)
     return rows[ok], levels[ok]
 
