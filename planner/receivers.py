@@ -97,7 +97,7 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
             bound = float(pair_lengths(sampled, xyz).max()) + tolerance_m if len(sampled) else 0.0
             design = site_pairs(xyz, bound)
         made["window"] = verified(assign_pairs(xyz, graph, design, tolerance_m=tolerance_m, seed=seed,
-                                               proved=proof.complete))
+                                               proved=proof.complete, time_budget=time_budget))
     if scheme in ("paper", "auto"):
         made["paper"] = verified(assign_paper(xyz[:, :2], graph, time_budget=time_budget, seed=seed))
     if scheme == "unique":

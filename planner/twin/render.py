@@ -165,12 +165,17 @@ def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate
         half = np.sqrt(np.diag(m2))
         if camera.distorted:  # the block holding the disc's distorted rim
             rim = camera.distorted_pixels(centres[k] + _unit_circle() @ shapes[k])
-            lo, hi = np.nanmin(rim, axis=0) - margin, np.nanmax(rim, axis=0) + margin
+            rim = rim[np.isfinite(rim).all(axis=1)]
+            if not len(rim):
+                continue  # a rim the lens model maps nowhere (rays past the edge of its range): not imaged
+            lo, hi = rim.min(axis=0) - margin, rim.max(axis=0) + margin
         else:
             lo, hi = centres[k] - half - margin, centres[k] + half + margin
-        u0, v0 = np.floor(lo).astype(int)
-        u1, v1 = np.ceil(hi).astype(int)
-        u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, width - 1), min(v1, height - 1)
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            continue
+        edge = [float(width), float(height)]  # clipped first: a disc far off the sensor maps past int64
+        u0, v0 = np.floor(np.clip(lo, 0.0, edge)).astype(int)
+        u1, v1 = np.ceil(np.clip(hi, -1.0, [width - 1.0, height - 1.0])).astype(int)
         if u0 > u1 or v0 > v1:
             continue
         rows = np.arange(v0, v1 + 1)

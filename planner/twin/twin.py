@@ -37,7 +37,11 @@ if TYPE_CHECKING:
 STAGES = ("blobs", "ids", "identify", "position")
 
 MATCH_SHARE = 0.25
-"""A blob belongs to an LED if its ellipse centre lies within this share of the LED image's minor axis."""
+"""A blob belongs to an LED if its ellipse centre lies within this share of the LED image's minor axis ..."""
+
+MATCH_FLOOR_PX = 3.0
+"""... or within this many pixels: the centroid of an image a few pixels thin (a far LED at a wide lens's edge)
+lies up to about a pixel plus the blur from where the lens maps the disc's centre (2.7 px measured)."""
 
 
 @dataclass(frozen=True)
@@ -155,7 +159,7 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
             continue
         off = np.hypot(*(centres - blob.ellipse.centre).T)
         k = int(np.argmin(off))
-        if off[k] <= MATCH_SHARE * 2 * minor[k]:
+        if off[k] <= max(MATCH_SHARE * 2 * minor[k], MATCH_FLOOR_PX):
             owner[b] = int(index[k])
     found = len(set(owner.values()) & set(whole.tolist()))
     wrong = [(b, owner[b]) for b in owner if blobs[b].id is not None and blobs[b].id != twin.site.ids[owner[b]]]
