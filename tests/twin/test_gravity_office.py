@@ -1,35 +1,44 @@
-"""Issue 19, Done-when 1: the DIALux office with an ultra-wide lens, planned for the gravity receiver."""
+"""Issue 19, Done-when 1: the DIALux office with a listed phone profile, planned for the gravity receiver.
+
+The listed ``ultrawide-fisheye`` profile (150 deg diagonal, Realme GT 2 Pro class) at 50 kHz drivers:
+>= 90 % of sampled poses decodable, proved, read over video frames, and the twin (rendered through the
+fisheye lens, 1 deg accelerometer noise, IDs stitched over 4 video frames) locates >= 99 % within 10 cm.
+The test runs 60 poses, all of which must be located (59 would be 98.3 %); the 300-pose figure the
+Done-when names is measured in docs/twin.md.
+"""
 
 import json
+import math
 import subprocess
 
 import pytest
+import yaml
 
 from conftest import ROOT
 
-# The ultrawide profile's intrinsics without its distortion: the twin's renderer does not distort yet
-# (issue 18.1), so the listed profile's barrel would be undistorted by a receiver that sees a pinhole image.
-CAMERA = "hfov_deg: 110\nwidth_px: 4032\nheight_px: 3024\nrow_time_s: 1.0e-5\n"
+POSES = 60
 
 
 @pytest.mark.slow
-def test_office_with_ultrawide_lens_is_proved_and_the_twin_locates_it(tmp_path):
-    camera = tmp_path / "ultrawide-ideal.yaml"
-    camera.write_text(CAMERA)
+def test_office_with_a_listed_fisheye_phone_is_proved_and_the_twin_locates_it(tmp_path):
     out = tmp_path / "office"
-    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "dialux-office.dxf"), "--receiver", "auto",
-                           "--camera", str(camera), "--driver-max-hz", "40000", "-o", str(out), "--json",
+    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "dialux-office.dxf"), "--receiver", "gravity",
+                           "--camera", "ultrawide-fisheye", "--driver-max-hz", "50000", "-o", str(out), "--json",
                            "--no-report", "--no-map", "--error-poses-per-m2", "0"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
-    r, v = summary["receiver"], summary["verification"]
-    assert r["mode"] == "gravity" and r["coverage"]["gravity"] > r["coverage"]["three"]
-    # measured 2026-12-03: gravity 90.5 %, three-LED 61.8 % of 110,592 sampled poses; proved, 1,124 pairs
+    v, code = summary["verification"], yaml.safe_load((out / "plan.yaml").read_text())["code"]
+    # measured 2026-12-03: 90.8 % of 110,592 sampled poses, proved (1,124 pairs); 6 bits, optimal (a clique
+    # of 44 luminaires that are pairwise windows); 20 chips at 46,647 Hz read over 4 video frames
+    assert summary["receiver"]["mode"] == "gravity"
     assert v["coverage"] >= 0.9 and v["decodability"] == "proved"
-    twin = subprocess.run(["vlp-twin", str(out / "plan.yaml"), "--poses", "30", "--jobs", "2", "--json"],
+    assert summary["bits"] == code["bits"] == 6 and code["optimal"] and summary["lower_bound_bits"] == 6
+    assert 2 <= summary["modulation"]["video_frames"] <= 4
+    twin = subprocess.run(["vlp-twin", str(out / "plan.yaml"), "--poses", str(POSES), "--jobs", "2", "--json"],
                           capture_output=True, text=True)
     assert twin.returncode in (0, 3), twin.stderr
     result = json.loads(twin.stdout)
-    # rendered frames, IDs over 4 video frames, 1 deg accelerometer noise: measured 29 of 30, median
-    # 0.24 mm (296 of 300 with --poses 300, 2026-12-03)
-    assert result["located"] >= 29 and result["error_m"]["max"] < 0.10
+    assert result["poses"] == POSES and result["video_frames"] == summary["modulation"]["video_frames"]
+    # measured 2026-12-03: 60 of 60 located, median 0.2 mm; 300 poses: see docs/twin.md
+    assert result["located"] >= math.ceil(0.99 * POSES) and result["error_m"]["max"] < 0.10
+    assert result["ids_misread"] == 0

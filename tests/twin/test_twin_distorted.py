@@ -60,3 +60,21 @@ def test_300_covered_poses_through_a_wide_lens_decode_and_locate(wide_plan_dir):
     s = summary(run_batch(doc, args, twin.sensor))
     assert s["success_rate"] >= 0.99, s["failed_by_stage"]
     assert s["error_m"]["p90"] < 0.01 and s["ids_misread"] == 0
+
+
+def test_an_led_the_lens_maps_far_off_the_sensor_is_skipped_without_an_overflow():
+    # the ultrawide's polynomial sends an LED 10 m off, 1 mm above the camera, ~1e21 px away: its box was
+    # cast to int past int64 (numpy's "invalid value encountered in cast"); it is off the sensor, not drawn
+    import warnings
+
+    from planner.camera_file import camera_profile
+
+    camera = camera_profile("ultrawide")
+    xyz = np.array([[10.0, 0.0, 1.001], [0.0, 0.0, 3.0]])
+    rotation = rotation_from_angles(0.0, 0.0, 0.0)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        frame = render_frame(xyz, np.array([0.1, 0.1]), ["1" * 20] * 2, 40_000.0, camera, np.array([0.0, 0.0, 1.0]),
+                             rotation, Sensor(), np.random.default_rng(0))
+    assert frame.drawn.tolist() == [1]  # the LED overhead is drawn, the far one is not
+    assert frame.image[1512, 2016] > 150
