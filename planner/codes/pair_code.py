@@ -37,6 +37,9 @@ STEPS_PER_LUMINAIRE = 40
 STALL_STEPS = 3000
 """Moves without a new fewest count of conflicts after which a width is given up."""
 
+CPSAT_MAX_ROWS = 3000
+"""Sites with more pairs in the index than this get no CP-SAT (as the three-LED window code's ``cpsat_max_windows``)."""
+
 
 def length_classes(lengths: np.ndarray, tolerance_m: float) -> np.ndarray:
     """Class of each length (M,): sorted lengths split where neighbours differ by more than the tolerance."""
@@ -152,8 +155,8 @@ def assign_pairs(xyz: np.ndarray, graph: NeighbourGraph, windows: np.ndarray, *,
     ``windows`` (M, 2) read uniquely, or distinct labels.
 
     From the larger of the counting and the clique bound upwards, each width gets min-conflicts and,
-    where that gives up, CP-SAT for ``time_budget`` deterministic seconds (hinted with the
-    min-conflicts labels), which may also prove the width infeasible. ``optimal`` in the detail: the
+    where that gives up on a site of at most ``CPSAT_MAX_ROWS`` pairs, CP-SAT for ``time_budget``
+    deterministic seconds, which may also prove the width infeasible. ``optimal`` in the detail: the
     width meets the bound, or CP-SAT proved the width below infeasible."""
     n = len(xyz)
     unique_bits = bits_for(n)
@@ -171,7 +174,7 @@ def assign_pairs(xyz: np.ndarray, graph: NeighbourGraph, windows: np.ndarray, *,
         labels, steps = pairwise.search(index, 2 ** b, seed=seed, max_steps=max_steps, stall_steps=STALL_STEPS)
         tried.append(b)
         found_by, infeasible = "min-conflicts", False
-        if labels is None and time_budget > 0:
+        if labels is None and time_budget > 0 and len(index.rows) <= CPSAT_MAX_ROWS:
             labels, infeasible, stopped = cpsat_pair_labels(index, 2 ** b, time_budget=time_budget, seed=seed)
             wall |= stopped
             cpsat_widths[b] = "found" if labels is not None else "infeasible" if infeasible else "gave up"
