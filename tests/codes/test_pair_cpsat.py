@@ -69,3 +69,27 @@ def test_assign_pairs_meets_the_counting_bound_on_a_grid_and_says_so():
     # the counting bound (31 neighbour windows need 9 labels) gives 4 bits, which min-conflicts or CP-SAT meets
     assert a.detail["lower_bound_labels"] >= 9 and a.lower_bound_bits == 4
     assert a.bits == 4 and a.detail["optimal"] and a.detail["widths_tried"] == [4]
+
+
+def _jittered(seed: int) -> np.ndarray:
+    xy = np.array([[x, y] for x in range(6) for y in range(5)], float) * 1.2
+    xy += np.random.default_rng(seed).uniform(-0.15, 0.15, xy.shape)
+    return np.column_stack([xy, np.full(len(xy), 2.8)])
+
+
+def test_cpsat_saves_the_bit_min_conflicts_gives_up_on_and_proves_a_width_infeasible():
+    xyz = _jittered(3)  # 30 luminaires 1.2 m apart, jittered: lengths differ, windows up to 2.5 m
+    windows = site_pairs(xyz, 2.5)
+    graph = build_graph(xyz[:, :2])
+    alone = assign_pairs(xyz, graph, windows, tolerance_m=0.05, time_budget=0)
+    both = assign_pairs(xyz, graph, windows, tolerance_m=0.05, time_budget=10.0)
+    # measured: min-conflicts gives up on 4 bits (distinct labels, 5 bits); CP-SAT finds 4, the bound's width
+    assert alone.bits == 5 and not alone.detail["cpsat"]
+    assert both.bits == 4 and both.detail["cpsat"] == {"4": "found"} and both.method.startswith("CP-SAT")
+    assert both.detail["optimal"] and pair_rivals(windows, xyz, both.ids, 0.05) == []
+    # windows up to 3.7 m: CP-SAT proves 16 labels cannot work, so distinct labels are optimal
+    other = _jittered(1)
+    far = site_pairs(other, 3.7)
+    proved = assign_pairs(other, build_graph(other[:, :2]), far, tolerance_m=0.05, time_budget=10.0)
+    assert proved.bits == 5 and proved.detail["cpsat"] == {"4": "infeasible"} and proved.detail["optimal"]
+    assert "CP-SAT proved fewer bits infeasible" in proved.method
