@@ -43,9 +43,9 @@ def test_office_with_a_listed_fisheye_phone_is_proved_and_the_twin_locates_it(tm
     assert result["located"] >= math.ceil(0.99 * POSES) and result["error_m"]["max"] < 0.10
     assert result["ids_misread"] == 0
     # a pose whose far-edge LEDs the two-LED start misplaces by more than their images (ideal pixels at 70 deg
-    # off axis): identified only by matching them again from the refitted pose (failed on 38 of 40 seeds before)
+    # off axis): identified only by matching them again from the refitted pose (failed on seeds 0-2 and 38 of 40 seeds before)
     one = subprocess.run(["vlp-twin", str(out / "plan.yaml"), "--pose", "13.08,17.09,0.52,10.1,202.8,139.6",
                           "--seed", "0", "--json"], capture_output=True, text=True)
     assert one.returncode == 0, one.stderr
     pose = json.loads(one.stdout)
-    assert pose["located"] and pose["error_m"] < 0.01 and pose["ids_read"] >= 8
+    assert pose["located"] and pose["error_m"] < 0.01 and pose["ids_read"] == pose["leds_in_view"] >= 5
