@@ -278,9 +278,12 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                           mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
-        accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
-                                 per_m2=options.error_poses_per_m2, seed=options.seed, terms=options.error_terms,
-                                 sample=sample)
+        gravity = receiver is not None and receiver.mode == "gravity"  # its accelerometer's error: one more term
+        sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
+        accuracy = site_accuracy(xyz, radii, layout.outline, cam, "gravity" if gravity else options.locate_method,
+                                 per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample,
+                                 terms=replace(options.error_terms, gravity_rad=sigma_rad) if gravity else
+                                 options.error_terms, accelerometer_sigma_rad=sigma_rad)
     advice = None
     if verification is not None:
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
