@@ -251,7 +251,7 @@ class SiteAccuracy:
 
 def method_text(method: str) -> str:
     """A method's name for summaries and figures; the gravity method says what it uses."""
-    return "gravity method (two whole LEDs plus the accelerometer's vertical)" if method == "gravity" else \
+    return "gravity method (two whole LEDs plus gravity from the accelerometer)" if method == "gravity" else \
         f"{method} method"
 
 
