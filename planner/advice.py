@@ -8,7 +8,10 @@ the same sampled measure: the share of a coarse pose sample (:func:`advice_per_m
 whose camera sees a window of its receiver mode: three whole, non-collinear LEDs (the
 paper's rule, section 3), or two whole LEDs with gravity. The IDs are designed afterwards
 to make those windows unique, so this is the coverage a plan of the changed site
-can reach. Every figure is sampled, never proved. ``docs/advice.md``.
+can reach. Given the plan's frame limits, a change whose coverage reaches the goal is
+also checked to still fit its frames (:mod:`planner.advice_frames`): one that needs faster
+drivers says so, one that fits at no driver rate is not recommended. Every figure is
+sampled, never proved. ``docs/advice.md``.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.advice_frames import FrameFit, FrameLimits, frame_fit, frame_text
 from planner.camera import Camera
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2, fill_outline
@@ -94,18 +98,37 @@ class Change:
 
 @dataclass(frozen=True)
 class Row:
-    """A tried change (one or two :class:`Change`) and its sampled coverage."""
+    """A tried change (one or two :class:`Change`), its sampled coverage, whether that is at least the goal
+    (``covers``) and, when it is and the plan's limits are known, how its frames fit."""
 
     changes: tuple[Change, ...]
     coverage: float
-    reaches: bool
+    covers: bool
+    frame: FrameFit | None = None
+
+    @property
+    def reaches(self) -> bool:
+        """Covers the goal, and its frames fit the plan's drivers (or were not checked)."""
+        return self.covers and (self.frame is None or self.frame.fits)
+
+    @property
+    def needs_driver(self) -> bool:
+        """Covers the goal, but only with faster drivers."""
+        return self.covers and self.frame is not None and self.frame.needs_driver_hz is not None
+
+    def rank(self) -> int:
+        """0 reaches the goal, 1 reaches it with faster drivers, 2 does not."""
+        return 0 if self.reaches else 1 if self.needs_driver else 2
 
     def summary(self) -> dict:
+        driver = self.frame.needs_driver_hz if self.needs_driver and self.frame else None
         return {"change": "; ".join(c.text for c in self.changes),
-                "flags": [f for c in self.changes for f in c.flags],
+                "flags": [f for c in self.changes for f in c.flags] + (["--driver-max-hz", f"{driver:.0f}"]
+                                                                       if driver else []),
                 "applicable_by_flags": all(c.flags for c in self.changes),
                 "camera": next((c.camera for c in self.changes if c.camera), None),
-                "coverage": round(self.coverage, 4), "reaches_goal": self.reaches}
+                "coverage": round(self.coverage, 4), "reaches_goal": self.reaches,
+                "covers_goal": self.covers, **({"frame": self.frame.summary()} if self.frame else {})}
 
 
 @dataclass(frozen=True)
@@ -121,6 +144,8 @@ class Advice:
     poses: int
     per_m2: float
     receiver: str = "three"
+    frames: FrameLimits | None = None  # the plan's frame limits the changes were checked against
+    allow_unusable: bool = False  # the plan was made with --allow-unusable (vlp-verify exits 0 on it too)
 
     @property
     def usable(self) -> bool:
@@ -128,8 +153,9 @@ class Advice:
 
     @property
     def recommended(self) -> Row | None:
-        """The first row that reaches the goal (rows are in order of least change)."""
-        return next((r for r in self.rows if r.reaches), None)
+        """The first row that reaches the goal, else the first that reaches it with faster drivers (rows are in
+        that order, then of least change)."""
+        return next((r for r in self.rows if r.rank() < 2), None)
 
     def summary(self) -> dict:
         """The ``advice`` mapping of ``plan.yaml`` and of ``vlp-plan --json``."""
@@ -141,7 +167,9 @@ class Advice:
                 "measure": f"share of sampled poses whose camera sees {WINDOW_WORDS[self.receiver]}",
                 "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
                 "baseline": round(self.baseline, 4), "changes": [r.summary() for r in self.rows],
-                "recommended": None if rec is None else self.rows.index(rec)}
+                "recommended": None if rec is None else self.rows.index(rec),
+                "driver_max_hz": None if self.frames is None else self.frames.driver_max_hz,
+                "allow_unusable": self.allow_unusable}
 
 
 def advice_per_m2(area: np.ndarray) -> float:
@@ -221,28 +249,39 @@ KNOBS = (_receiver_changes, _camera_changes, _height_changes, _density_changes)
 
 
 def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float = 0.0, *, goal: float = COVERAGE_GOAL,
-           seed: int = 0) -> Advice:
+           seed: int = 0, frames: FrameLimits | None = None, allow_unusable: bool = False) -> Advice:
     """Try the candidate changes on ``site`` (planned at ``coverage``, ``too_few`` of its poses
     seeing fewer than three LEDs and ``ambiguous`` of them reading alike) until some reach ``goal``.
 
-    For each knob the least change that reaches the goal, else its best; if no single change
-    does, the least pair of changes (two knobs) that does, else the best pair.
+    For each knob the least change that reaches the goal, else the least that reaches it with
+    faster drivers, else its best; if no single change reaches it, the least pair of changes (two
+    knobs) that does, else the least pair that does with faster drivers, else the best pair. With
+    ``frames`` (the plan's limits) a change reaches the goal only if its frames fit them too.
     """
     per_m2 = advice_per_m2(working_area(site.xyz[:, :2], site.outline))
     cache: dict[tuple[str, ...], float] = {}
 
+    def applied(changes: tuple[Change, ...]) -> Site:
+        s = site
+        for c in changes:
+            s = c.apply(s)
+        return s
+
     def measure(changes: tuple[Change, ...]) -> float:
         key = tuple(c.text for c in changes)
         if key not in cache:
-            s = site
-            for c in changes:
-                s = c.apply(s)
+            s = applied(changes)
             cache[key] = RECEIVERS[s.receiver](s, per_m2, seed)
         return cache[key]
 
     def row(changes: tuple[Change, ...]) -> Row:
         cov = measure(changes)
-        return Row(changes, cov, cov >= goal + MARGIN)
+        covers = cov >= goal + MARGIN
+        return Row(changes, cov, covers, frame_fit(applied(changes), frames, seed) if covers and frames else None)
+
+    def kept(tried: list[Row]) -> Row:  # the one that reaches, else the least fixed by drivers, else the best
+        return min(enumerate(tried), key=lambda kr: (kr[1].rank(), -kr[1].coverage if kr[1].rank() == 2
+                                                     else kr[0]))[1]
 
     baseline = measure(())
     knobs = [c for c in (knob(site) for knob in KNOBS) if c]
@@ -254,22 +293,31 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float =
                 tried.append(row((c,)))
                 if tried[-1].reaches:
                     break
-            rows.append(tried[-1] if tried[-1].reaches else max(tried, key=lambda r: r.coverage))
+            rows.append(kept(tried))
         if not any(r.reaches for r in rows):
-            best = None
+            tried = []
             for a, b in itertools.combinations(knobs, 2):
                 pairs = sorted(itertools.product(range(len(a)), range(len(b))), key=lambda ij: (sum(ij), ij))
+                here = []
                 for i, j in pairs:
-                    r = row((a[i], b[j]))
-                    if r.reaches:
-                        rows.append(r)
+                    here.append(row((a[i], b[j])))
+                    if here[-1].reaches:
                         break
-                    best = r if best is None or r.coverage > best.coverage else best
-            if best is not None and not any(r.reaches for r in rows):
-                rows.append(best)
-    rows.sort(key=lambda r: (not r.reaches, len(r.changes), -r.coverage if not r.reaches else 0))
+                if kept(here).rank() < 2:  # reaches, or would with faster drivers
+                    rows.append(kept(here))
+                tried += here
+            if tried and not any(r.rank() < 2 for r in rows):
+                rows.append(kept(tried))
+    rows.sort(key=lambda r: (r.rank(), len(r.changes), -r.coverage if r.rank() == 2 else 0))
     n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
-    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2, site.receiver)
+    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2, site.receiver, frames,
+                  allow_unusable)
+
+
+def standing(coverage: float, too_few: float, ambiguous: float, goal: float, receiver: str) -> dict:
+    """The keys :func:`verdict` reads, for a coverage measured anew (``vlp-verify``): shares of sampled poses."""
+    return {"goal": goal, "usable_from": USABLE_COVERAGE, "usable": coverage >= USABLE_COVERAGE, "coverage": coverage,
+            "too_few_leds": too_few, "ambiguous": ambiguous, "meets_goal": coverage >= goal, "receiver": receiver}
 
 
 def verdict(advice: dict) -> str:
@@ -294,9 +342,12 @@ def table(advice: dict) -> list[tuple[str, str, str]]:
     for k, c in enumerate(advice["changes"]):
         remark = ("recommended: " if k == advice["recommended"] else "") + (
             "reaches the goal" if c["reaches_goal"] else
+            f"reaches the goal's coverage, but {frame_text(c['frame'], advice.get('driver_max_hz'))}"
+            if c.get("covers_goal") and c.get("frame") else
             f"within {100 * MARGIN:g} point of the goal (sampling error)" if c["coverage"] >= advice["goal"] else
             "below the goal")
-        if c["flags"]:
+        frame = c.get("frame")
+        if c["flags"] and not (frame and not frame["fits"] and frame["needs_driver_hz"] is None):  # no flags fix it
             remark += "; vlp-plan " + " ".join(c["flags"])
         if not c["applicable_by_flags"]:
             remark += "; change the layout"

@@ -154,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
                                          mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
                                          accelerometer_sigma_deg=args.accelerometer_deg,
-                                         coverage_goal=args.coverage_goal / 100))
+                                         coverage_goal=args.coverage_goal / 100, allow_unusable=args.allow_unusable))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
