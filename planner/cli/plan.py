@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
         "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
-        "sampled pose is ambiguous (only with an explicit --scheme), or the plan is NOT USABLE (under 50 %% of "
+        "sampled pose is ambiguous (only with an explicit --scheme), or the plan is NOT USABLE (under 50 % of "
         "sampled poses decode; --allow-unusable exits 0). Docs: docs/cli.md.",
     )
     p.add_argument("layout", metavar="LAYOUT", nargs="?",

@@ -30,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
         "that may be a window (the three LEDs the camera uses); check that each names exactly one place, "
         "against every other triple of the site.",
         epilog="Exit codes: 0 decodable everywhere sampled, no triangle that may be a window reads like another "
-        "triple and the plan usable (at least 50 %% of sampled poses decode), 3 otherwise (NOT USABLE exits 0 when "
+        "triple and the plan usable (at least 50 % of sampled poses decode), 3 otherwise (NOT USABLE exits 0 when "
         "the plan was made with vlp-plan --allow-unusable), 1 bad input, 2 usage error.",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
