@@ -249,8 +249,11 @@ def advice_section(plan: PlanFile) -> AdviceSection | None:
     if plan.advice is None:
         return None
     a = plan.advice.model_dump()
+    measure = a.get("measure") or "share of sampled poses whose camera sees three whole, non-collinear LEDs"
+    frames = (f" A change that reaches it is also checked to fit its frames with drivers of "
+              f"{a['driver_max_hz'] / 1e3:g} kHz." if a.get("driver_max_hz") else "")
     note = (f"Changes tried to reach {100 * a['goal']:.0f} % of sampled poses, each measured on a coarse sample "
-            f"({a['poses_per_candidate']} poses, {a['poses_per_m2']:g} per m2) as the share whose camera sees three "
-            "whole, non-collinear LEDs. Sampled figures, not proved; plan the changed site to verify it."
+            f"({a['poses_per_candidate']} poses, {a['poses_per_m2']:g} per m2) as the {measure}.{frames} "
+            "Sampled figures, not proved; plan the changed site to verify it."
             if a["changes"] else "")
     return AdviceSection(verdict(a), note, table(a) if a["changes"] else [])
