@@ -32,7 +32,7 @@ from planner.multiframe import MAX_RATE_HZ
 from planner.verify.windows import PoseSample, working_area
 
 if TYPE_CHECKING:
-    from planner.advice import Site
+    from planner.advice_changes import Site
 
 
 @dataclass(frozen=True)
