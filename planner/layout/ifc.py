@@ -4,8 +4,10 @@ A light fixture is an ``IfcLightFixture`` (IFC4) or an ``IfcFlowTerminal`` typed
 ``IfcLightFixtureType`` (IFC2X3, and IFC4 models written the old way). Its position is the
 origin of its placement, composed through every relative placement to the world, converted
 from the project's length unit (feet, millimetres...) to metres once; its mounting height is
-that Z above the storey's own placement (the floor it stands on). Fixtures are grouped by the
-storey that contains them; when more than one storey holds fixtures, ``storey`` chooses.
+that Z above the storey's own placement (the floor it stands on); its radius is half the
+smaller plan side of its body's bounding box (ifcopenshell's geometry, in its own axes), as a
+DXF symbol's. Fixtures are grouped by the storey that contains them; when more than one
+storey holds fixtures, ``storey`` chooses.
 ``docs/ifc.md`` describes the rules for users.
 """
 
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,6 +27,12 @@ from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layou
 __all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of", "storey_key", "pick_storey"]
 
 _NO_STOREY = "(no storey)"
+
+MESH_ANGLE_RAD = 0.02
+"""The mesh of a fixture's body turns by at most this between facets: a disc's extent is 0.005 % short."""
+
+MAX_BODY_SIDE_M = 10.0
+"""A fixture body whose smaller plan side is this long or longer is no luminaire's size: the default applies."""
 
 
 def open_model(path: str | Path):
@@ -124,7 +133,7 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     mount_height_m : float, optional
         Mounting height where a fixture's height above its storey is not plausible (below 1.5 m) [m].
     radius_m : float, optional
-        LED radius [m]; default ``DEFAULT_RADIUS_M`` (IFC gives no LED size).
+        LED radius [m]; default: the fixture body's (:func:`body_radius_m`), else ``DEFAULT_RADIUS_M``.
     units : str, optional
         Not accepted: an IFC model states its units.
     """
@@ -156,7 +165,7 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     chosen = groups[key]
     floor_z = _storey_z(chosen[0][1], scale)
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
-    radius = radius_m if radius_m is not None else DEFAULT_RADIUS_M
+    sizes = _BodySizes()
     rows, implausible = [], []
     for fixture, _ in chosen:
         if fixture.ObjectPlacement is None:
@@ -175,10 +184,11 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
         kind = _type_name(fixture)
         if kind:
             source["type"] = kind
+        body = sizes.radius_m(fixture) if radius_m is None else None
         rows.append((round(float(at[1]) * 1000), round(float(at[0]) * 1000), fixture.GlobalId, float(at[0]),
-                     float(at[1]), z, source))
+                     float(at[1]), z, radius_m if radius_m is not None else body or DEFAULT_RADIUS_M, source))
     rows.sort(key=lambda row: row[:3])
-    luminaires = tuple(Luminaire(f"L{i + 1:04d}", x, y, z, radius, src) for i, (*_, x, y, z, src) in enumerate(rows))
+    luminaires = tuple(Luminaire(f"L{i + 1:04d}", x, y, z, r, src) for i, (*_, x, y, z, r, src) in enumerate(rows))
     unit = next((u for u, m in UNIT_TO_M.items() if abs(m - scale) < 1e-9 * m), "m")
     reason = f"stated by the {model.schema} model ({scale:g} m per unit)"
     notes = [f"storey {key!r}: {len(chosen)} light fixtures, floor at {floor_z:.3f} m"]
@@ -188,9 +198,70 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
         given = "given" if mount_height_m is not None else "default; set with --height"
         notes.append(f"{len(implausible)} fixture(s) sit {implausible[0]:.3g} m above the storey's floor, no plausible "
                      f"mounting height; used {height:g} m ({given})")
-    if radius_m is None:
-        notes.append(f"LED radius {radius:g} m (default; the model gives none; set with --radius)")
+    if radius_m is None and sizes.measured:
+        radii = sorted({round(r, 4) for r in sizes.measured})
+        notes.append(f"LED radius from the fixtures' geometry: {', '.join(f'{r:g}' for r in radii[:4])}"
+                     f"{' ...' if len(radii) > 4 else ''} m (half the smaller side of each body; set with --radius)")
+    if radius_m is None and sizes.missing:
+        notes.append(f"{sizes.missing} fixture(s) have no geometry to measure; LED radius {DEFAULT_RADIUS_M:g} m "
+                     "(default; set with --radius)")
     return Layout(luminaires, None, where, unit, reason, tuple(notes))
+
+
+class _BodySizes:
+    """Fixture body radii [m], measured once per shared shape (a type's representation map)."""
+
+    def __init__(self) -> None:
+        self._known: dict[tuple, float | None] = {}
+        self.measured: list[float] = []
+        self.missing = 0
+
+    def radius_m(self, fixture) -> float | None:
+        key = _shape_key(fixture)
+        if key not in self._known:
+            self._known[key] = body_radius_m(fixture) if key else None
+        r = self._known[key]
+        if r is None:
+            self.missing += 1
+        else:
+            self.measured.append(r)
+        return r
+
+
+def _shape_key(fixture) -> tuple:
+    """What a fixture's body is built from: equal keys, equal bodies in the fixture's own axes."""
+    shape = getattr(fixture, "Representation", None)
+    if shape is None:
+        return ()
+    key: list[tuple] = []
+    for rep in shape.Representations or ():
+        for item in rep.Items or ():
+            if item.is_a("IfcMappedItem"):
+                target = item.MappingTarget
+                scale = [getattr(target, a, None) for a in ("Scale", "Scale2", "Scale3")] if target else []
+                key.append((item.MappingSource.id(), tuple(scale)))
+            else:
+                key.append((item.id(),))
+    return tuple(key)
+
+
+def body_radius_m(fixture) -> float | None:
+    """Half the smaller plan side of the bounding box of the fixture's body in its own axes [m] (a round
+    downlight: its radius; a 600 mm square panel: 0.3 m); None without geometry ifcopenshell can mesh."""
+    import ifcopenshell.geom
+
+    settings = ifcopenshell.geom.settings()
+    settings.set("mesher-angular-deflection", MESH_ANGLE_RAD)
+    try:
+        shape: Any = ifcopenshell.geom.create_shape(settings, fixture)
+        verts = np.asarray(shape.geometry.verts, dtype=float).reshape(-1, 3)
+    except Exception:  # no representation, or one the geometry kernel cannot mesh: the default applies
+        return None
+    if not len(verts) or not np.isfinite(verts).all():
+        return None
+    sides = np.ptp(verts[:, :2], axis=0)
+    side = float(sides.min()) if sides.min() > 0 else float(sides.max())
+    return 0.5 * side if 0 < side < MAX_BODY_SIDE_M else None
 
 
 def _type_name(fixture) -> str | None:

@@ -54,6 +54,25 @@ def test_ifc4_light_fixtures_in_millimetres_need_a_storey(ifc4_two_storeys):
         read_layout(path, None, ReadOptions(storey="Roof"))
 
 
+@pytest.mark.parametrize("schema, unit, body, radius_m", [
+    ("IFC4", "mm", ("round", 0.09), 0.09),  # a downlight: its disc's radius
+    ("IFC2X3", "ft", ("square", 0.6), 0.3),  # a 600 mm panel mapped from its type: half its side
+])
+def test_ifc_led_radius_from_the_fixture_body(tmp_path, schema, unit, body, radius_m):
+    model, _ = ifc_models.model(schema, unit, body=body)
+    layout = read_layout(ifc_models.save(model, tmp_path / "bodies.ifc"), 12)
+    assert_allclose([lum.radius for lum in layout.luminaires], radius_m, rtol=1e-4)  # a meshed disc
+    assert any(n.startswith(f"LED radius from the fixtures' geometry: {radius_m:g} m") for n in layout.notes)
+    given = read_ifc(tmp_path / "bodies.ifc", radius_m=0.05)  # --radius wins
+    assert {lum.radius for lum in given.luminaires} == {0.05} and not any("geometry" in n for n in given.notes)
+
+
+def test_ifc_fixtures_without_geometry_take_the_default_radius(ifc2x3_feet):
+    layout = read_layout(ifc2x3_feet[0], 12)
+    assert {lum.radius for lum in layout.luminaires} == {0.1}
+    assert any(n.startswith("12 fixture(s) have no geometry to measure; LED radius 0.1 m") for n in layout.notes)
+
+
 def test_ifc_flags_that_do_not_apply(ifc2x3_feet, tmp_path):
     with pytest.raises(UsageError, match="--units does not apply"):
         read_ifc(ifc2x3_feet[0], units="mm")
