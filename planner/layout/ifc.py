@@ -23,6 +23,7 @@ from planner.defaults import MAX_HEIGHT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf_units import HEIGHT_RANGE_M
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
+from planner.layout.outline import floor_outline
 
 __all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of", "storey_key", "pick_storey"]
 
@@ -205,7 +206,44 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     if radius_m is None and sizes.missing:
         notes.append(f"{sizes.missing} fixture(s) have no geometry to measure; LED radius {DEFAULT_RADIUS_M:g} m "
                      "(default; set with --radius)")
-    return Layout(luminaires, None, where, unit, reason, tuple(notes))
+    outline, outline_notes = space_outline(model, chosen[0][1])
+    return Layout(luminaires, outline, where, unit, reason, tuple(notes + outline_notes))
+
+
+def space_outline(model, storey) -> tuple[tuple[tuple[float, float], ...] | None, list[str]]:
+    """The floor [m] from the storey's ``IfcSpace`` footprints (their meshes seen from above, joined as a DXF's
+    rooms are: :func:`planner.layout.outline.floor_outline`); ``(None, [])`` when the storey has no space."""
+    import ifcopenshell.geom
+    import ifcopenshell.util.element as element
+    import shapely
+
+    spaces = [sp for sp in model.by_type("IfcSpace") if storey is not None and
+              storey in (element.get_aggregate(sp), element.get_container(sp))]
+    if not spaces:
+        return None, []
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", True)
+    footprints, failed = [], 0
+    for space in spaces:
+        try:
+            shape: Any = ifcopenshell.geom.create_shape(settings, space)
+            verts = np.asarray(shape.geometry.verts, dtype=float).reshape(-1, 3)[:, :2]
+            faces = np.asarray(shape.geometry.faces, dtype=np.int64).reshape(-1, 3)
+        except Exception:  # a space the kernel cannot mesh: left out, counted in the note
+            failed += 1
+            continue
+        tri = shapely.polygons(verts[faces])
+        area = shapely.area(tri)
+        joined = shapely.unary_union(tri[area > 1e-9 * max(float(area.max(initial=0.0)), 1e-12)])
+        for part in getattr(joined, "geoms", [joined]):
+            if part.geom_type == "Polygon" and part.area > 0:
+                footprints.append([(float(x), float(y)) for x, y in list(part.exterior.coords)[:-1]])
+    outline, notes = floor_outline(footprints, "space footprints")
+    if outline is None:
+        return None, [f"the storey's {len(spaces)} IfcSpace(s) have no footprint the geometry kernel can mesh: "
+                      "poses are sampled over the fixtures' hull"]
+    lost = [f"room outline: {failed} of the storey's {len(spaces)} IfcSpaces could not be meshed and are left out"]
+    return outline, (lost if failed else []) + (notes or ["room outline: the storey's IfcSpace footprint"])
 
 
 class _BodySizes:
