@@ -107,3 +107,23 @@ def test_the_gravity_plans_report_says_what_the_error_figures_include(plans):
         assert "gravity method (two whole LEDs plus gravity from the accelerometer)" in text
         assert "accelerometer error (1 sigma 1 deg on the measured vertical)" in text
         assert "perspective method" not in text
+
+
+def test_the_gravity_plans_error_map_keeps_its_longer_title_inside_the_canvas(tmp_path):
+    import matplotlib
+
+    from planner.pipeline import PlanOptions, make_plan, read_layout
+    from planner.plot_style import RC
+    from planner.report.maps import error_figure
+    from report.test_maps_text import _check  # the report figures' text-box check
+
+    (tmp_path / "room.yaml").write_text("unit: m\nheight: 2.8\nradius: 0.1\nluminaires:\n"
+                                        + "".join(f"- {{name: L{k}, x: {x}, y: {y}}}\n" for k, (x, y) in enumerate(XY)))
+    plan = make_plan(read_layout(tmp_path / "room.yaml", None),
+                     PlanOptions(camera=CAM, receiver="gravity", error_poses_per_m2=4.0))
+    matplotlib.use("Agg")
+    with matplotlib.rc_context(RC):
+        fig = error_figure(plan)
+        boxes = _check(fig)
+    title = next(t for t, _, _ in boxes if t.startswith("room.yaml: gravity method"))
+    assert "accelerometer error" in title and "\n" in title  # wrapped, not clipped
