@@ -29,7 +29,7 @@ from planner.errors import PlanningError
 from planner.frame import frame_chips, line_code
 from planner.modulation import ROWS_PER_CHIP, modulate, smallest_window_image_rows, timing_per_m2
 from planner.multiframe import MAX_RATE_HZ
-from planner.verify.windows import PoseSample, working_area
+from planner.verify.windows import PoseSample, find_windows, sample_poses, working_area
 
 if TYPE_CHECKING:
     from planner.advice_changes import Site
@@ -85,7 +85,8 @@ def smallest_image_rows(site: Site, seed: int) -> float:
     from planner.receivers import smallest_pair_image_rows
 
     area = working_area(site.xyz[:, :2], site.outline)
-    sample = PoseSample.draw(area, site.xyz, site.radii, site.camera, timing_per_m2(area), seed)
+    poses = sample_poses(area, site.camera, timing_per_m2(area), seed)  # the prefix a plan of the site times on
+    sample = PoseSample(area, poses, find_windows(poses, site.xyz, site.radii, site.camera), seed)
     smallest = smallest_pair_image_rows if site.receiver == "gravity" else smallest_window_image_rows
     try:
         return smallest(site.xyz, site.radii, site.camera, sample)
