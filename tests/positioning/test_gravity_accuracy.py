@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import ROOT
 from planner.camera import Camera
 from planner.positioning.accuracy import site_errors
 from planner.positioning.error_terms import DEFAULT_TERMS, NO_TERMS, TERMS, ErrorTerms
@@ -127,3 +128,11 @@ def test_the_gravity_plans_error_map_keeps_its_longer_title_inside_the_canvas(tm
         boxes = _check(fig)
     title = next(t for t, _, _ in boxes if t.startswith("room.yaml: gravity method"))
     assert "accelerometer error" in title and "\n" in title  # wrapped, not clipped
+
+
+@pytest.mark.parametrize("value", ["-1", "46", "nan"])
+def test_vlp_plan_refuses_an_accelerometer_error_out_of_range_in_one_line(value, tmp_path):
+    run = subprocess.run(["vlp-plan", "layouts/grid-32.yaml", "--accelerometer-deg", value, "-o", str(tmp_path / "o")],
+                         capture_output=True, text=True, cwd=str(ROOT))
+    assert run.returncode == 2 and "--accelerometer-deg" in run.stderr and "Traceback" not in run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
