@@ -161,8 +161,8 @@ def assign_pairs(xyz: np.ndarray, graph: NeighbourGraph, windows: np.ndarray, *,
     n = len(xyz)
     unique_bits = bits_for(n)
     probe = PairIndex(n, windows, xyz, tolerance_m, 2)
-    clique = len(window_clique(n, probe.rows[probe.active]))
-    bound = max(probe.lower_bound(), clique)
+    clique, counted = len(window_clique(n, probe.rows[probe.active])), probe.lower_bound()
+    bound = max(counted, clique)
     labels, k, tried, steps, proved_below, wall, found_by = None, n, [], 0, False, False, ""
     max_steps = max(2000, STEPS_PER_LUMINAIRE * n)
     cpsat_widths: dict[int, str] = {}
@@ -189,9 +189,9 @@ def assign_pairs(xyz: np.ndarray, graph: NeighbourGraph, windows: np.ndarray, *,
     optimal = bits == bits_for(bound) or proved_below
     if labels is None:
         labels = np.arange(n, dtype=np.int64)
-        method = ("distinct labels (optimal: " + (f"{clique} luminaires are pairwise windows)" if
-                                                  bits == bits_for(bound) else "CP-SAT proved fewer bits infeasible)")
-                  if optimal else "distinct labels (no shorter labels found)")
+        why = ("CP-SAT proved fewer bits infeasible" if bits != bits_for(bound) else
+               f"{clique} luminaires are pairwise windows" if clique >= counted else "the counting bound")
+        method = f"distinct labels (optimal: {why})" if optimal else "distinct labels (no shorter labels found)"
     if wall:
         method += " (CP-SAT stopped by the wall clock: the result may differ on another machine)"
     detail = {"receiver": "gravity", "windows": int(probe.active.sum()), "rival_pairs": int((~probe.active).sum()),
