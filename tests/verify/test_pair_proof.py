@@ -127,3 +127,59 @@ def test_over_the_pair_budget_is_refused():
     env = pair_envelope(Camera(), xyz, np.full(64, 0.1), 0.03, None)
     with pytest.raises(Exception, match="over the proof's budget"):
         possible_window_pairs(xyz[:, :2], np.full(64, 0.1), env, budget=100)
+
+
+def _dense_windows_inside(layout_name, cam, per_m2):
+    from conftest import ROOT
+    from planner.pipeline import read_layout
+    from planner.verify.pair_windows import find_pairs
+
+    lay = read_layout(ROOT / "layouts" / layout_name, None)
+    xyz, radii = lay.xyz, np.array([lum.radius for lum in lay.luminaires])
+    area = working_area(lay.xy, lay.outline)
+    proof = prove_pair_set(xyz, radii, cam, 0.03, area)
+    assert proof.complete, proof.reason
+    pp = find_pairs(sample_poses(area, cam, per_m2, 1), xyz, radii, cam)
+    sampled = {tuple(p) for p in pp.pairs[pp.covered].tolist()}
+    assert sampled and sampled <= {tuple(p) for p in proof.pairs.tolist()}, sorted(sampled - {tuple(p) for p in proof.pairs.tolist()})[:3]
+    return xyz, proof, sampled
+
+
+@pytest.mark.slow
+def test_grid_512_two_led_windows_of_a_dense_sample_lie_in_the_proved_set_and_its_code_reads_them():
+    """Issue 19, Done-when 2 (in part): grid-512 is proved for the gravity receiver; the pair code designed
+    against the proved set leaves no proved pair reading like another (2,000 poses/m2: 256,000 poses)."""
+    from planner.codes.pair_code import assign_pairs
+    from planner.graph import build_graph
+    from planner.verify.pair_windows import pair_rivals
+
+    xyz, proof, sampled = _dense_windows_inside("grid-512.yaml", Camera(), 2000)
+    # measured 2026-12-03: 21,187 proved pairs; 1,906 distinct windows in the dense sample (every 0.5 and 0.71 m pair)
+    assert len(sampled) > 1800 and len(proof.pairs) < 25_000
+    code = assign_pairs(xyz, build_graph(xyz[:, :2]), proof.pairs, tolerance_m=0.05, proved=True)
+    assert pair_rivals(proof.pairs, xyz, code.ids, 0.05) == []
+    assert code.lower_bound_bits <= code.bits <= 8
+
+
+@pytest.mark.slow
+def test_grid_256_and_the_office_two_led_windows_lie_in_the_proved_set():
+    from planner.camera_file import camera_profile
+
+    _dense_windows_inside("grid-256.yaml", Camera(), 2000)
+    _dense_windows_inside("dialux-office.dxf", camera_profile("wide"), 2000)
+    _dense_windows_inside("dialux-office.dxf", camera_profile("ultrawide"), 2000)
+
+
+@pytest.mark.slow
+def test_vlp_plan_says_a_gravity_plan_of_grid_256_is_proved(tmp_path):
+    import json
+    import subprocess
+
+    from conftest import ROOT
+
+    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-256.yaml"), "--receiver", "gravity", "-o",
+                           str(tmp_path / "p"), "--json", "--no-report", "--no-map", "--no-firmware",
+                           "--error-poses-per-m2", "0"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    v = json.loads(done.stdout)["verification"]
+    assert v["decodability"] == "proved" and v["window_set"]["complete"] and v["window_set"]["read_alike"] == 0
