@@ -21,18 +21,19 @@ either member's); the pair's hull test uses the two members' own radii.
 from __future__ import annotations
 
 import math
+from itertools import chain
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.verify.envelope import Envelope
-from planner.verify.proof import MIN_CELL_M, _hull_depth, _near
+from planner.verify.proof import MIN_CELL_M, _near
 
 _NEAR_Q = 8
 """LEDs nearest a cell's centre tested against every member and pair (the hull is widest there)."""
 
 _NEAR_ALONG = 3
-"""LEDs nearest each of two points between the cell and a member, and the pair's middle, tested too."""
+"""LEDs nearest the point halfway between the cell and a member, and the pair's middle, tested too."""
 
 _ROWS = 400_000
 """Rows (cell, member) or (cell, pair) handled at once."""
@@ -132,20 +133,20 @@ def _cells(env: Envelope, xy: np.ndarray, area: np.ndarray | None, spread: float
 
 
 def case_b_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, area: np.ndarray | None, spread: float,
-                 outside_by) -> np.ndarray:
-    """Pairs ``i < j`` (M, 2) that some axis point of case B may serve (a superset: see the module)."""
+                 outside_by, known: np.ndarray | None = None) -> np.ndarray:
+    """Pairs ``i < j`` (M, 2) that some axis point of case B may serve (a superset: see the module), beside
+    the ``known`` pairs (K, 2), kept already (by another slice) and not searched again."""
     n = len(xy)
     tree = cKDTree(xy)
-    kept: set[int] = set()
+    kept = _Kept(n, known)
     half = max(MIN_CELL_M, (env.disc_m - env.install_m) / 6.0)
     top = _cells(env, xy, area, spread, half)
     for s in range(0, len(top), _TOP_BATCH):
         _search(xy, radii, env, area, spread, outside_by, tree, top[s:s + _TOP_BATCH], half, kept)
-    out = np.array(sorted(kept), dtype=np.int64)
-    return np.column_stack([out // n, out % n]).reshape(-1, 2)
+    return kept.pairs()
 
 
-def _search(xy, radii, env, area, spread, outside_by, tree, centre, half, kept: set[int]) -> None:
+def _search(xy, radii, env, area, spread, outside_by, tree, centre, half, kept: _Kept) -> None:
     """Branch and bound over the cells ``centre`` (C, 2) of half-side ``half``: add the pairs they may serve."""
     n = len(xy)
     rho, d, reach = env.disc_m, env.install_m, env.axis_reach_m
@@ -178,7 +179,7 @@ def _search(xy, radii, env, area, spread, outside_by, tree, centre, half, kept: 
         gone = _pair_excluded(xy, radii, rows[:, 1], rows[:, 2], centre[rows[:, 0]], np.full(len(rows), rho - g), tree, m)
         rows = rows[~gone]
         if half <= MIN_CELL_M:
-            kept.update((rows[:, 1] * n + rows[:, 2]).tolist())
+            kept.add(rows[:, 1] * n + rows[:, 2])
             return
         used, inv = np.unique(rows[:, 0], return_inverse=True)  # split: each row goes to its cell's four children
         half /= 2.0
@@ -188,10 +189,34 @@ def _search(xy, radii, env, area, spread, outside_by, tree, centre, half, kept: 
         rows[:, 0] = np.repeat(inv * 4, 4) + np.tile(np.arange(4), len(inv))
 
 
-def _not_kept(rows: np.ndarray, kept: set[int], n: int) -> np.ndarray:
-    if not kept or not len(rows):
-        return rows
-    return rows[~np.isin(rows[:, 1] * n + rows[:, 2], np.fromiter(kept, np.int64, len(kept)))]
+class _Kept:
+    """Pairs kept so far, by code ``i n + j``: a bitmap for sites up to 4,096 luminaires, else a set."""
+
+    def __init__(self, n: int, known: np.ndarray | None):
+        self.n = n
+        self.dense = np.zeros(n * n, dtype=bool) if n <= 4096 else None
+        self.codes: set[int] = set()
+        if known is not None and len(known):
+            self.add(known[:, 0] * n + known[:, 1])
+
+    def add(self, codes: np.ndarray) -> None:
+        if self.dense is not None:
+            self.dense[codes] = True
+        else:
+            self.codes.update(codes.tolist())
+
+    def has(self, codes: np.ndarray) -> np.ndarray:
+        if self.dense is not None:
+            return self.dense[codes]
+        return np.isin(codes, np.fromiter(self.codes, np.int64, len(self.codes)))
+
+    def pairs(self) -> np.ndarray:
+        out = np.flatnonzero(self.dense) if self.dense is not None else np.array(sorted(self.codes), dtype=np.int64)
+        return np.column_stack([out // self.n, out % self.n]).reshape(-1, 2)
+
+
+def _not_kept(rows: np.ndarray, kept: _Kept, n: int) -> np.ndarray:
+    return rows[~kept.has(rows[:, 1] * n + rows[:, 2])] if len(rows) else rows
 
 
 def _witnesses(xy, radii, rows, centre, dist, idx, kept, tree, env, area, spread, outside_by, m) -> np.ndarray:
@@ -220,9 +245,8 @@ def _witnesses(xy, radii, rows, centre, dist, idx, kept, tree, env, area, spread
         if len(pick):
             free = ~_pair_excluded(xy, radii, rows[pick, 1], rows[pick, 2], centre[rows[pick, 0]],
                                    np.full(len(pick), rho), tree, m)
-            new = np.unique(code[pick[free]])
-            kept.update(new.tolist())
-            done |= np.isin(code, new)
+            kept.add(code[pick[free]])
+            done |= kept.has(code)
         if hi > rank.max(initial=0):
             break
         lo = hi
@@ -250,10 +274,10 @@ def _first_rows(xy, radii, centre, live, inside, idx, tree, rho_in, member_reach
     if counts.sum() == 0:
         return np.empty((0, 3), np.int64)
     cell_of = np.repeat(cells, counts)
-    mem = np.concatenate([np.asarray(x, dtype=np.int64) for x in members if len(x)])
+    mem = np.fromiter(chain.from_iterable(members), dtype=np.int64, count=int(counts.sum()))
     q, a = centre[cell_of], xy[mem]
-    cand = [near_q[cell_of]] + [_near(tree, q + f * (a - q), min(_NEAR_ALONG, n)) for f in (0.35, 0.7)]
-    cand = np.sort(np.hstack(cand), axis=1)
+    parts = [near_q[cell_of]] + [_near(tree, 0.5 * (q + a), min(_NEAR_ALONG, n))]
+    cand = np.sort(np.hstack(parts), axis=1)
     dup = np.zeros(cand.shape, dtype=bool)
     dup[:, 1:] = cand[:, 1:] == cand[:, :-1]
     deep = np.zeros(cand.shape, dtype=bool)

@@ -8,13 +8,15 @@ member, and the level set ``E(θ)`` (the ceiling points within ``θ`` of the axi
 * **A** (``θ2 <= α'``): both are wholly seen and no other LED lies inside ``E(θ2)``, which holds
   the ``R``-spindle of ``a, b``: so no other LED lies in that spindle (the three-LED proof allows
   one, the unknown third member; here none).
-* **B** (``θ2 > α'``): ``E(α')`` holds the axis disc ``D(q, ρ)`` and no LED but ``a, b``, and every
-  LED in ``conv({a, b} ∪ D(q, ρ))`` with a disc no larger than theirs is wholly seen and nearer,
-  so that hull holds none. It holds a triangle on ``ab`` with its apex ``ρ`` from the line on
-  ``q``'s side, so an LED deep in every such triangle excludes ``q`` on that side; ``q`` on the
-  line belongs to both sides.
+* **B** (``θ2 > α'``): ``E(α')`` holds the axis disc ``D(q, ρ)`` and no LED but ``a, b``, both lie in
+  the view ``E(κ)``, and every LED in ``conv({a, b} ∪ D(q, ρ))`` with a disc no larger than theirs is
+  wholly seen and nearer, so that hull holds none. Searched once for the site over cells of axis
+  points (:mod:`planner.verify.pair_cells`).
 
 A pair is excluded only when both cases are; what is left is a superset of every two-LED window.
+The envelope is cut into :data:`SLICES` ranges of ceiling distance and tilt, each proved with its own
+sure cone, sure disc ``ρ = L sin α'`` (``L`` the least distance to the axis point), reach, spindle and
+view box (:class:`PairEnvelope`); a pair is kept if some range keeps it.
 Installed luminaires lie up to ``d`` from the drawing, counted as in the three-LED proof (an LED
 counts against a pair only when deeper than ``2 d``; spindles over every centre within ``R + d``).
 """
@@ -63,7 +65,7 @@ def possible_window_pairs(xy: np.ndarray, radii: np.ndarray, env: PairEnvelope, 
             near = _near(tree, 0.5 * (a + b), min(NEAR, n))
             valid = (near != pr[:, :1]) & (near != pr[:, 1:])
             kept[short[start:start + _CHUNK]] |= _spindle_count(a, b, xy[near], valid, sl) == 0
-        served = case_b_pairs(xy, radii, sl, area, sl.axis_spread_m, _outside_by)
+        served = case_b_pairs(xy, radii, sl, area, sl.axis_spread_m, _outside_by, pairs[kept])
         kept |= np.isin(code, served[:, 0] * n + served[:, 1])
     return pairs[kept]
 
