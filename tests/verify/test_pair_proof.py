@@ -154,7 +154,7 @@ def test_grid_512_two_led_windows_of_a_dense_sample_lie_in_the_proved_set_and_it
     from planner.verify.pair_windows import pair_rivals
 
     xyz, proof, sampled = _dense_windows_inside("grid-512.yaml", Camera(), 2000)
-    # measured 2026-12-03: 21,187 proved pairs; 1,906 distinct windows in the dense sample (every 0.5 and 0.71 m pair)
+    # measured 2026-12-03: 21,230 proved pairs; 1,829 distinct windows in this sample (0.5 and 0.71 m pairs)
     assert len(sampled) > 1800 and len(proof.pairs) < 25_000
     code = assign_pairs(xyz, build_graph(xyz[:, :2]), proof.pairs, tolerance_m=0.05, proved=True)
     assert pair_rivals(proof.pairs, xyz, code.ids, 0.05) == []
