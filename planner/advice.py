@@ -8,24 +8,24 @@ the same sampled measure: the share of a coarse pose sample (:func:`advice_per_m
 whose camera sees a window of its receiver mode: three whole, non-collinear LEDs (the
 paper's rule, section 3), or two whole LEDs with gravity. The IDs are designed afterwards
 to make those windows unique, so this is the coverage a plan of the changed site
-can reach. Every figure is sampled, never proved. ``docs/advice.md``.
+can reach. Given the plan's frame limits, a change whose coverage reaches the goal is
+also checked to still fit its frames (:mod:`planner.advice_frames`): one that needs faster
+drivers says so, one that fits at no driver rate is not recommended. Every figure is
+sampled, never proved. ``docs/advice.md``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
-import math
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera
+from planner.advice_changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
+from planner.advice_frames import FrameFit, FrameLimits, frame_fit, frame_text
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
-from planner.layout.model import area_m2, fill_outline
-from planner.verify.pair_windows import find_pairs
-from planner.verify.windows import find_windows, sample_poses, working_area
+from planner.layout.model import area_m2
+from planner.verify.windows import working_area
 
 ADVICE_POSES_PER_M2 = 10.0
 """Pose density of the advice's coarse sample [1/m^2] (the plan verifies at 400)."""
@@ -36,76 +36,43 @@ ADVICE_MIN_POSES = 4000
 ADVICE_MAX_POSES = 20000
 """... and at most this many on large ones, so that the advice stays cheap beside the plan."""
 
-DENSER_MAX_LUMINAIRES = 20000
-"""Denser layouts are tried up to this many luminaires."""
-
 MARGIN = 0.01
 """A change counts as reaching the goal when its sampled coverage is at least goal + MARGIN (sampling error)."""
-
-RAISE_M = (0.5, 1.0, 2.0)
-"""How much higher the luminaires are tried [m]."""
-
-DENSER = (2, 4, 8)
-"""Luminaire count multipliers tried (a regular lattice over the working area)."""
-
-
-@dataclass(frozen=True)
-class Site:
-    """What the coverage measure needs: luminaire centres (N, 3) [m], radii (N,) [m], the outline, the camera and
-    the receiver mode."""
-
-    xyz: np.ndarray
-    radii: np.ndarray
-    outline: Sequence[tuple[float, float]] | None
-    camera: Camera
-    receiver: str = "three"
-    filled: bool = False  # the luminaires were laid out by ``--leds N`` in an outline-only drawing
-
-
-def window_coverage(site: Site, per_m2: float, seed: int) -> float:
-    """Share of sampled poses that see three whole, non-collinear LEDs (the three-LED receiver)."""
-    poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
-    return float(find_windows(poses, site.xyz, site.radii, site.camera).covered.mean())
-
-
-def pair_coverage(site: Site, per_m2: float, seed: int) -> float:
-    """Share of sampled poses that see two whole LEDs (the gravity receiver's window, ``planner.receivers``)."""
-    poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
-    return float(find_pairs(poses, site.xyz, site.radii, site.camera).covered.mean())
-
-
-WINDOW_WORDS = {"three": "three whole, non-collinear LEDs", "gravity": "two whole LEDs (with gravity)"}
-"""What a pose must see to decode, per receiver mode, as the summary and the report say it."""
-
-RECEIVERS: dict[str, Callable[[Site, float, int], float]] = {"three": window_coverage, "gravity": pair_coverage}
-"""Coverage measure per receiver mode (``--receiver``); a mode registered here becomes a candidate change."""
-
-
-@dataclass(frozen=True)
-class Change:
-    """One change to a site: what it is for people, the vlp-plan flags that apply it, and how."""
-
-    knob: str  # "receiver", "camera", "height" or "density"
-    text: str
-    flags: tuple[str, ...]  # empty: the site itself must change (e.g. redraw the luminaires)
-    apply: Callable[[Site], Site] = dataclasses.field(compare=False, repr=False)
-    camera: dict | None = None  # the camera file that applies a camera change (camera.to_dict())
 
 
 @dataclass(frozen=True)
 class Row:
-    """A tried change (one or two :class:`Change`) and its sampled coverage."""
+    """A tried change (one or two :class:`Change`), its sampled coverage, whether that is at least the goal
+    (``covers``) and, when it is and the plan's limits are known, how its frames fit."""
 
     changes: tuple[Change, ...]
     coverage: float
-    reaches: bool
+    covers: bool
+    frame: FrameFit | None = None
+
+    @property
+    def reaches(self) -> bool:
+        """Covers the goal, and its frames fit the plan's drivers (or were not checked)."""
+        return self.covers and (self.frame is None or self.frame.fits)
+
+    @property
+    def needs_driver(self) -> bool:
+        """Covers the goal, but only with faster drivers."""
+        return self.covers and self.frame is not None and self.frame.needs_driver_hz is not None
+
+    def rank(self) -> int:
+        """0 reaches the goal, 1 reaches it with faster drivers, 2 does not."""
+        return 0 if self.reaches else 1 if self.needs_driver else 2
 
     def summary(self) -> dict:
+        driver = self.frame.needs_driver_hz if self.needs_driver and self.frame else None
         return {"change": "; ".join(c.text for c in self.changes),
-                "flags": [f for c in self.changes for f in c.flags],
+                "flags": [f for c in self.changes for f in c.flags] + (["--driver-max-hz", f"{driver:.0f}"]
+                                                                       if driver else []),
                 "applicable_by_flags": all(c.flags for c in self.changes),
                 "camera": next((c.camera for c in self.changes if c.camera), None),
-                "coverage": round(self.coverage, 4), "reaches_goal": self.reaches}
+                "coverage": round(self.coverage, 4), "reaches_goal": self.reaches,
+                "covers_goal": self.covers, **({"frame": self.frame.summary()} if self.frame else {})}
 
 
 @dataclass(frozen=True)
@@ -121,6 +88,8 @@ class Advice:
     poses: int
     per_m2: float
     receiver: str = "three"
+    frames: FrameLimits | None = None  # the plan's frame limits the changes were checked against
+    allow_unusable: bool = False  # the plan was made with --allow-unusable (vlp-verify exits 0 on it too)
 
     @property
     def usable(self) -> bool:
@@ -128,8 +97,9 @@ class Advice:
 
     @property
     def recommended(self) -> Row | None:
-        """The first row that reaches the goal (rows are in order of least change)."""
-        return next((r for r in self.rows if r.reaches), None)
+        """The first row that reaches the goal, else the first that reaches it with faster drivers (rows are in
+        that order, then of least change)."""
+        return next((r for r in self.rows if r.rank() < 2), None)
 
     def summary(self) -> dict:
         """The ``advice`` mapping of ``plan.yaml`` and of ``vlp-plan --json``."""
@@ -141,7 +111,9 @@ class Advice:
                 "measure": f"share of sampled poses whose camera sees {WINDOW_WORDS[self.receiver]}",
                 "poses_per_candidate": self.poses, "poses_per_m2": round(self.per_m2, 4),
                 "baseline": round(self.baseline, 4), "changes": [r.summary() for r in self.rows],
-                "recommended": None if rec is None else self.rows.index(rec)}
+                "recommended": None if rec is None else self.rows.index(rec),
+                "driver_max_hz": None if self.frames is None else self.frames.driver_max_hz,
+                "allow_unusable": self.allow_unusable}
 
 
 def advice_per_m2(area: np.ndarray) -> float:
@@ -151,98 +123,40 @@ def advice_per_m2(area: np.ndarray) -> float:
     return float(np.clip(ADVICE_POSES_PER_M2 * m2, ADVICE_MIN_POSES, ADVICE_MAX_POSES)) / m2
 
 
-def _camera_changes(site: Site) -> list[Change]:
-    """The bundled phone profiles (``--camera NAME``) wider than the site's camera, held as the site's camera is
-    (receiver heights, tilt)."""
-    from planner.camera_file import camera_profiles
-
-    now = math.degrees(site.camera.hfov_rad)
-    held = {k: getattr(site.camera, k) for k in ("min_height_m", "max_height_m", "max_tilt_rad")}
-    wider = sorted((p.camera for p in camera_profiles().values() if math.degrees(p.camera.hfov_rad) > now + 1.0),
-                   key=lambda cam: cam.hfov_rad)
-    out = []
-    for cam in wider:
-        cam = dataclasses.replace(cam, **held)
-
-        def with_camera(s: Site, cam: Camera = cam) -> Site:
-            return dataclasses.replace(s, camera=cam)
-
-        out.append(Change("camera", f"camera {cam.name} ({math.degrees(cam.hfov_rad):.0f} deg wide, now {now:.0f})",
-                          ("--camera", cam.name), with_camera, cam.to_dict()))
-    return out
-
-
-def _height_changes(site: Site) -> list[Change]:
-    z = float(np.median(site.xyz[:, 2]))
-    out = []
-    for dz in RAISE_M:
-        def raise_(s: Site, dz: float = dz) -> Site:
-            xyz = s.xyz.copy()
-            xyz[:, 2] += dz
-            return dataclasses.replace(s, xyz=xyz)
-
-        out.append(Change("height", f"luminaires {dz:g} m higher ({z + dz:g} m)",
-                          ("--height", f"{z + dz:g}") if site.filled else (), raise_))
-    return out
-
-
-def _density_changes(site: Site) -> list[Change]:
-    area = working_area(site.xyz[:, :2], site.outline)
-    radius = float(np.median(site.radii))
-    out = []
-    for k in DENSER:
-        n = k * len(site.xyz)
-        if n * (2 * radius) ** 2 > area_m2(area) or n > DENSER_MAX_LUMINAIRES:
-            break
-
-        def denser(s: Site, n: int = n) -> Site:
-            lums, _ = fill_outline(area, n, float(np.median(s.xyz[:, 2])), radius)
-            xyz = np.array([[lum.x, lum.y, lum.z] for lum in lums])
-            # poses over the same floor as the site's: the new lattice's hull is smaller than the old one's
-            return dataclasses.replace(s, xyz=xyz, radii=np.full(len(lums), radius),
-                                       outline=[(float(x), float(y)) for x, y in area])
-
-        pitch = math.sqrt(area_m2(area) / n)
-        out.append(Change("density", f"{n} luminaires ({k} x, {pitch:.2g} m apart)",
-                          ("--leds", str(n)) if site.filled else (), denser))
-    return out
-
-
-def _receiver_changes(site: Site) -> list[Change]:
-    def with_mode(mode: str) -> Callable[[Site], Site]:
-        return lambda s: dataclasses.replace(s, receiver=mode)
-
-    return [Change("receiver", f"receiver mode {mode}", ("--receiver", mode), with_mode(mode))
-            for mode in RECEIVERS if mode != site.receiver]
-
-
-KNOBS = (_receiver_changes, _camera_changes, _height_changes, _density_changes)
-"""Candidate changes per knob, each list from the least to the most change; the order of the table."""
-
-
 def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float = 0.0, *, goal: float = COVERAGE_GOAL,
-           seed: int = 0) -> Advice:
+           seed: int = 0, frames: FrameLimits | None = None, allow_unusable: bool = False) -> Advice:
     """Try the candidate changes on ``site`` (planned at ``coverage``, ``too_few`` of its poses
     seeing fewer than three LEDs and ``ambiguous`` of them reading alike) until some reach ``goal``.
 
-    For each knob the least change that reaches the goal, else its best; if no single change
-    does, the least pair of changes (two knobs) that does, else the best pair.
+    For each knob the least change that reaches the goal, else the least that reaches it with
+    faster drivers, else its best; if no single change reaches it, the least pair of changes (two
+    knobs) that does, else the least pair that does with faster drivers, else the best pair. With
+    ``frames`` (the plan's limits) a change reaches the goal only if its frames fit them too.
     """
     per_m2 = advice_per_m2(working_area(site.xyz[:, :2], site.outline))
     cache: dict[tuple[str, ...], float] = {}
 
+    def applied(changes: tuple[Change, ...]) -> Site:
+        s = site
+        for c in changes:
+            s = c.apply(s)
+        return s
+
     def measure(changes: tuple[Change, ...]) -> float:
         key = tuple(c.text for c in changes)
         if key not in cache:
-            s = site
-            for c in changes:
-                s = c.apply(s)
+            s = applied(changes)
             cache[key] = RECEIVERS[s.receiver](s, per_m2, seed)
         return cache[key]
 
     def row(changes: tuple[Change, ...]) -> Row:
         cov = measure(changes)
-        return Row(changes, cov, cov >= goal + MARGIN)
+        covers = cov >= goal + MARGIN
+        return Row(changes, cov, covers, frame_fit(applied(changes), frames, seed) if covers and frames else None)
+
+    def kept(tried: list[Row]) -> Row:  # the one that reaches, else the least fixed by drivers, else the best
+        return min(enumerate(tried), key=lambda kr: (kr[1].rank(), -kr[1].coverage if kr[1].rank() == 2
+                                                     else kr[0]))[1]
 
     baseline = measure(())
     knobs = [c for c in (knob(site) for knob in KNOBS) if c]
@@ -254,22 +168,31 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float =
                 tried.append(row((c,)))
                 if tried[-1].reaches:
                     break
-            rows.append(tried[-1] if tried[-1].reaches else max(tried, key=lambda r: r.coverage))
+            rows.append(kept(tried))
         if not any(r.reaches for r in rows):
-            best = None
+            tried = []
             for a, b in itertools.combinations(knobs, 2):
                 pairs = sorted(itertools.product(range(len(a)), range(len(b))), key=lambda ij: (sum(ij), ij))
+                here = []
                 for i, j in pairs:
-                    r = row((a[i], b[j]))
-                    if r.reaches:
-                        rows.append(r)
+                    here.append(row((a[i], b[j])))
+                    if here[-1].reaches:
                         break
-                    best = r if best is None or r.coverage > best.coverage else best
-            if best is not None and not any(r.reaches for r in rows):
-                rows.append(best)
-    rows.sort(key=lambda r: (not r.reaches, len(r.changes), -r.coverage if not r.reaches else 0))
+                if kept(here).rank() < 2:  # reaches, or would with faster drivers
+                    rows.append(kept(here))
+                tried += here
+            if tried and not any(r.rank() < 2 for r in rows):
+                rows.append(kept(tried))
+    rows.sort(key=lambda r: (r.rank(), len(r.changes), -r.coverage if r.rank() == 2 else 0))
     n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
-    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2, site.receiver)
+    return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2, site.receiver, frames,
+                  allow_unusable)
+
+
+def standing(coverage: float, too_few: float, ambiguous: float, goal: float, receiver: str) -> dict:
+    """The keys :func:`verdict` reads, for a coverage measured anew (``vlp-verify``): shares of sampled poses."""
+    return {"goal": goal, "usable_from": USABLE_COVERAGE, "usable": coverage >= USABLE_COVERAGE, "coverage": coverage,
+            "too_few_leds": too_few, "ambiguous": ambiguous, "meets_goal": coverage >= goal, "receiver": receiver}
 
 
 def verdict(advice: dict) -> str:
@@ -294,9 +217,12 @@ def table(advice: dict) -> list[tuple[str, str, str]]:
     for k, c in enumerate(advice["changes"]):
         remark = ("recommended: " if k == advice["recommended"] else "") + (
             "reaches the goal" if c["reaches_goal"] else
+            f"reaches the goal's coverage, but {frame_text(c['frame'], advice.get('driver_max_hz'))}"
+            if c.get("covers_goal") and c.get("frame") else
             f"within {100 * MARGIN:g} point of the goal (sampling error)" if c["coverage"] >= advice["goal"] else
             "below the goal")
-        if c["flags"]:
+        frame = c.get("frame")
+        if c["flags"] and not (frame and not frame["fits"] and frame["needs_driver_hz"] is None):  # no flags fix it
             remark += "; vlp-plan " + " ".join(c["flags"])
         if not c["applicable_by_flags"]:
             remark += "; change the layout"

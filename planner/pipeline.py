@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.advice import COVERAGE_GOAL, Site, advise
+from planner.advice_frames import FrameLimits
 from planner.budget import plan_sample_per_m2
 from planner.camera import Camera
 from planner.codes.assignment import assign_paper
@@ -93,6 +94,7 @@ class PlanOptions:
     max_video_frames: int = MAX_VIDEO_FRAMES
     mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
     coverage_goal: float = COVERAGE_GOAL
+    allow_unusable: bool = False  # recorded in the advice: vlp-verify then exits 0 on an unusable plan too
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -278,16 +280,22 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                           mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
-        accuracy = site_accuracy(xyz, radii, layout.outline, cam, options.locate_method,
-                                 per_m2=options.error_poses_per_m2, seed=options.seed, terms=options.error_terms,
-                                 sample=sample)
+        gravity = receiver is not None and receiver.mode == "gravity"  # its accelerometer's error: one more term
+        sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
+        accuracy = site_accuracy(xyz, radii, layout.outline, cam, "gravity" if gravity else options.locate_method,
+                                 per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample,
+                                 terms=replace(options.error_terms, gravity_rad=sigma_rad) if gravity else
+                                 options.error_terms, accelerometer_sigma_rad=sigma_rad)
     advice = None
     if verification is not None:
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
         share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
         mode = receiver.mode if receiver is not None else "three"
+        frames = FrameLimits(options.line_code, options.check_distance, options.driver_max_hz, options.video_fps,
+                             options.max_video_frames, options.mcu_clock_hz)  # the changes' frames must fit too
         advice = advise(Site(xyz, radii, layout.outline, cam, mode, filled), verification.coverage, *share,
-                        goal=options.coverage_goal, seed=options.seed)
+                        goal=options.coverage_goal, seed=options.seed, frames=frames,
+                        allow_unusable=options.allow_unusable)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
 
 

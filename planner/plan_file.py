@@ -212,6 +212,7 @@ class Advice(_Section):
     baseline: Share
     changes: list[AdviceChange] = []
     recommended: Annotated[int, Field(ge=0)] | None = None
+    allow_unusable: bool = False  # made with vlp-plan --allow-unusable
 
     @model_validator(mode="after")
     def _recommended_is_a_row(self) -> Advice:

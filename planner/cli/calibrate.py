@@ -254,20 +254,12 @@ def camera_yaml(camera: Camera, result: dict) -> str:
     fields = {k: v for k, v in camera.to_dict().items() if k not in ("hfov_deg", "receiver_height_m", "max_tilt_deg")}
     if camera.distortion and not camera.distorted:
         fields.update(lens=camera.lens, distortion=[float(k) for k in camera.distortion])
-    notes = ["# Camera file written by vlp-calibrate (docs/camera.md)."]
-    cal = result.get("calibration")
-    if cal:
-        notes.append(f"# Chessboard: {cal['used']} of {cal['images']} photos used, RMS reprojection error "
-                     f"{cal['rms_px']:.3f} px (worst photo {max(e['rms_px'] for e in cal['per_image']):.3f} px); "
-                     f"horizontal field of view {cal['hfov_deg']:.2f} deg.")
-    ht = result.get("heights")
-    if ht and not cal:
-        notes.append(f"# Focal length: the paper's fit f = {ht['f0_px']:.2f} + {ht['k_px_per_m']:.3f} px/m x distance "
-                     f"over {len(ht['shots'])} level photos, taken at the mean distance {ht['mean_distance_m']:.2f} m.")
-    rt = result.get("row_time")
-    if rt:
-        notes.append(f"# Row time: stripes {rt['period_rows']:.2f} rows apart at {rt['blink_hz']:g} Hz in {rt['photo']}.")
-    else:
+    notes = ["# Camera file written by vlp-calibrate (docs/camera.md), from:"]
+    used = [line for line in _measured(result) if not line.startswith("  ") or "RMS" in line]
+    if result.get("calibration"):  # the chessboard's focal length is the file's, not the heights' fit
+        used = [line for line in used if not line.startswith("focal length fit")]
+    notes += [f"#   {line.strip()}" for line in used]
+    if not result.get("row_time"):
         notes.append("# row_time_s: not measured (the default); measure it with --row-time PHOTO --blink-hz F.")
     return "\n".join(notes) + "\n" + yaml.safe_dump(fields, sort_keys=False, default_flow_style=None)
 
@@ -279,6 +271,16 @@ def _text(result: dict) -> str:
         lines.append(f"blink firmware: {fw['dir']} ({', '.join(fw['files'])}): {fw['blink_hz']:.6g} Hz square wave "
                      f"on PB1 (timer 1, prescaler {fw['prescaler']}, compare {fw['compare']} at "
                      f"{fw['mcu_clock_hz']:g} Hz); photograph it with --row-time PHOTO --blink-hz {fw['blink_hz']:.6g}")
+    lines += _measured(result)
+    if result.get("output"):
+        lines.append(f"wrote {result['output']}")
+    return "\n".join(lines)
+
+
+def _measured(result: dict) -> list[str]:
+    """What was measured, a headline per measurement and its details indented: the summary, and the camera
+    file's comments (headlines and the RMS line)."""
+    lines = []
     cal = result.get("calibration")
     if cal:
         lines.append(f"chessboard: {cal['used']} of {cal['images']} photos used ({cal['width_px']} x {cal['height_px']} "
@@ -301,9 +303,7 @@ def _text(result: dict) -> str:
     if rt:
         lines.append(f"row time: {1e6 * rt['row_time_s']:.3f} us (stripes {rt['period_rows']:.2f} rows apart at "
                      f"{rt['blink_hz']:g} Hz, {rt['edges']} edges in rows {rt['led_rows'][0]}-{rt['led_rows'][1]})")
-    if result.get("output"):
-        lines.append(f"wrote {result['output']}")
-    return "\n".join(lines)
+    return lines
 
 
 def console_main(argv: list[str] | None = None) -> int:

@@ -11,6 +11,7 @@ from pathlib import Path
 from planner import __version__
 from planner.cli import common as cli
 from planner.defaults import (
+    ACCELEROMETER_SIGMA_DEG,
     COVERAGE_GOAL,
     DRIVER_MAX_HZ,
     ERROR_POSES_PER_M2,
@@ -39,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
         "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
         epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
-        "sampled pose is ambiguous (only with an explicit --scheme), or the plan is NOT USABLE (under 50 %% of "
+        "sampled pose is ambiguous (only with an explicit --scheme), or the plan is NOT USABLE (under 50 % of "
         "sampled poses decode; --allow-unusable exits 0). Docs: docs/cli.md.",
     )
     p.add_argument("layout", metavar="LAYOUT", nargs="?",
@@ -87,8 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
                    f"video frames (default {MAX_VIDEO_FRAMES}, the most; 1: one image only)")
     g = p.add_argument_group("accuracy")
     g.add_argument("--locate-method", choices=list(LOCATE_METHODS), default="perspective",
-                   help="positioning method the error map simulates (default perspective; paper: the paper's "
-                   "weak-perspective method)")
+                   help="positioning method the error map of a three-LED plan simulates (default perspective; "
+                   "paper: the paper's weak-perspective method); a gravity plan's is the gravity method")
+    g.add_argument("--accelerometer-deg", type=cli.at_most(45, strict=False), default=ACCELEROMETER_SIGMA_DEG,
+                   metavar="DEG", help="gravity plans: RMS error of the phone's measured vertical [deg], one more "
+                   f"term of the error map and what its fixes weigh gravity by (default {ACCELEROMETER_SIGMA_DEG:g})")
     g.add_argument("--error-poses-per-m2", type=cli.at_most(MAX_POSES_PER_M2, strict=False),
                    default=ERROR_POSES_PER_M2, metavar="N",
                    help=f"camera poses per square metre the error map simulates (default {ERROR_POSES_PER_M2:g}; "
@@ -149,7 +153,8 @@ def main(argv: list[str] | None = None) -> int:
                                          args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
                                          mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
-                                         coverage_goal=args.coverage_goal / 100))
+                                         accelerometer_sigma_deg=args.accelerometer_deg,
+                                         coverage_goal=args.coverage_goal / 100, allow_unusable=args.allow_unusable))
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
@@ -270,9 +275,10 @@ def _print_summary(s: dict) -> None:
             print("           single-frame: one LED image holds a whole frame")
     a = s["accuracy"]
     if a and a["located"]:
+        from planner.positioning.accuracy import method_text
         from planner.positioning.error_terms import TERM_NAMES, ErrorTerms, included_text
 
-        print(f"  accuracy {a['method']} method: median {length_text(a['median_m'])}, 90 % {length_text(a['p90_m'])}, "
+        print(f"  accuracy {method_text(a['method'])}: median {length_text(a['median_m'])}, 90 % {length_text(a['p90_m'])}, "
               f"max {length_text(a['max_m'])} over {a['located']} simulated poses, including "
               f"{included_text(ErrorTerms.from_dict(a['terms']))}")
         if a["dominant"]:

@@ -1,10 +1,12 @@
 """``vlp-verify PLAN``: verify an existing (perhaps hand-edited) plan.
 
-Exit codes: 0 every sampled pose that sees a window decodes uniquely and no
-triangle that may be a window reads like another triple of the site; 3 otherwise
-(the first conflicting luminaire triples are named); 1 bad input; 2 usage. The
-triangles are proved anew (:mod:`planner.verify.proof`) where the site is within
-the proof's reach; the summary says whether decodability is proved or sampled only.
+Exit codes: 0 every sampled pose that sees a window decodes uniquely, no
+triangle that may be a window reads like another triple of the site, and the plan
+is usable; 3 otherwise (the first conflicting luminaire triples are named; a plan
+under the usable coverage says NOT USABLE, as ``vlp-plan`` does, and exits 3 unless
+it was made with ``--allow-unusable``); 1 bad input; 2 usage. The triangles are
+proved anew (:mod:`planner.verify.proof`) where the site is within the proof's
+reach; the summary says whether decodability is proved or sampled only.
 """
 
 from __future__ import annotations
@@ -27,8 +29,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Verify a plan.yaml: sample camera poses over the site, and find every triangle of luminaires "
         "that may be a window (the three LEDs the camera uses); check that each names exactly one place, "
         "against every other triple of the site.",
-        epilog="Exit codes: 0 decodable everywhere sampled and no triangle that may be a window reads like another "
-        "triple, 3 otherwise, 1 bad input, 2 usage error.",
+        epilog="Exit codes: 0 decodable everywhere sampled, no triangle that may be a window reads like another "
+        "triple and the plan usable (at least 50 % of sampled poses decode), 3 otherwise (NOT USABLE exits 0 when "
+        "the plan was made with vlp-plan --allow-unusable), 1 bad input, 2 usage error.",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
     cli.add_verify_flags(p)
@@ -61,6 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     else:
         result = _verify_three(xyz, radii, ids, plan, camera, args, recorded, install)
     summary = result.summary(plan.names, limit=10)
+    from planner.advice import verdict
+
+    judged = _standing(result, plan)
+    summary.update(usable=judged["usable"], verdict=verdict(judged))
     if map_path is not None:
         from planner.report.maps import render_coverage
 
@@ -69,10 +76,29 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        print(f"vlp-verify: {args.plan}: {cli.verification_line(summary)}")
+        line = cli.verification_line(summary)
+        if not judged["usable"] and line.endswith(": proved"):
+            line += f" (but only {100 * result.coverage:.1f} % of sampled poses see a window: not an endorsement)"
+        print(f"vlp-verify: {args.plan}: {line}\n  verdict  {summary['verdict']}")
         for group in summary["first_conflicts"] + summary["window_set"]["first_conflicts"]:
             print("  same key: " + " = ".join("(" + ", ".join(t) + ")" for t in group))
-    return 0 if result.clean else ExitCode.CHECK_FAILED
+    allowed = plan.advice is not None and plan.advice.allow_unusable
+    if not judged["usable"]:
+        print(f"vlp-verify: NOT USABLE: only {100 * result.coverage:.1f} % of sampled poses decode"
+              + (" (the plan was made with --allow-unusable)" if allowed else
+                 "; see the advice in the plan's site report"), file=sys.stderr)
+    return 0 if result.clean and (judged["usable"] or allowed) else ExitCode.CHECK_FAILED
+
+
+def _standing(result, plan) -> dict:
+    """The verdict's inputs from this verification: coverage, shares too few and ambiguous, the plan's goal."""
+    from planner.advice import standing
+    from planner.defaults import COVERAGE_GOAL
+    from planner.verify.verify import AMBIGUOUS, TOO_FEW
+
+    n = max(result.poses, 1)
+    return standing(result.coverage, result.count(TOO_FEW) / n, result.count(AMBIGUOUS) / n,
+                    plan.advice.goal if plan.advice is not None else COVERAGE_GOAL, plan.receiver_mode)
 
 
 def _verify_three(xyz, radii, ids, plan, camera, args, recorded: dict, install: float):

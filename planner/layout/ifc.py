@@ -4,8 +4,10 @@ A light fixture is an ``IfcLightFixture`` (IFC4) or an ``IfcFlowTerminal`` typed
 ``IfcLightFixtureType`` (IFC2X3, and IFC4 models written the old way). Its position is the
 origin of its placement, composed through every relative placement to the world, converted
 from the project's length unit (feet, millimetres...) to metres once; its mounting height is
-that Z above the storey's own placement (the floor it stands on). Fixtures are grouped by the
-storey that contains them; when more than one storey holds fixtures, ``storey`` chooses.
+that Z above the storey's own placement (the floor it stands on); its radius is half the
+smaller plan side of its body's bounding box (ifcopenshell's geometry, in its own axes), as a
+DXF symbol's. Fixtures are grouped by the storey that contains them; when more than one
+storey holds fixtures, ``storey`` chooses.
 ``docs/ifc.md`` describes the rules for users.
 """
 
@@ -19,12 +21,12 @@ import numpy as np
 from planner.defaults import MAX_HEIGHT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf_units import HEIGHT_RANGE_M
+from planner.layout.ifc_geometry import BodySizes, space_outline
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
 __all__ = ["read_ifc", "open_model", "light_fixtures", "storey_of", "storey_key", "pick_storey"]
 
 _NO_STOREY = "(no storey)"
-
 
 def open_model(path: str | Path):
     """The IFC model of ``path``; a file ifcopenshell cannot parse raises :class:`InputError`."""
@@ -124,7 +126,7 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     mount_height_m : float, optional
         Mounting height where a fixture's height above its storey is not plausible (below 1.5 m) [m].
     radius_m : float, optional
-        LED radius [m]; default ``DEFAULT_RADIUS_M`` (IFC gives no LED size).
+        LED radius [m]; default: the fixture body's (:func:`planner.layout.ifc_geometry.body_radius_m`), else ``DEFAULT_RADIUS_M``.
     units : str, optional
         Not accepted: an IFC model states its units.
     """
@@ -156,7 +158,7 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     chosen = groups[key]
     floor_z = _storey_z(chosen[0][1], scale)
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
-    radius = radius_m if radius_m is not None else DEFAULT_RADIUS_M
+    sizes = BodySizes()
     rows, implausible = [], []
     for fixture, _ in chosen:
         if fixture.ObjectPlacement is None:
@@ -175,10 +177,11 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
         kind = _type_name(fixture)
         if kind:
             source["type"] = kind
+        body = sizes.radius_m(fixture) if radius_m is None else None
         rows.append((round(float(at[1]) * 1000), round(float(at[0]) * 1000), fixture.GlobalId, float(at[0]),
-                     float(at[1]), z, source))
+                     float(at[1]), z, radius_m if radius_m is not None else body or DEFAULT_RADIUS_M, source))
     rows.sort(key=lambda row: row[:3])
-    luminaires = tuple(Luminaire(f"L{i + 1:04d}", x, y, z, radius, src) for i, (*_, x, y, z, src) in enumerate(rows))
+    luminaires = tuple(Luminaire(f"L{i + 1:04d}", x, y, z, r, src) for i, (*_, x, y, z, r, src) in enumerate(rows))
     unit = next((u for u, m in UNIT_TO_M.items() if abs(m - scale) < 1e-9 * m), "m")
     reason = f"stated by the {model.schema} model ({scale:g} m per unit)"
     notes = [f"storey {key!r}: {len(chosen)} light fixtures, floor at {floor_z:.3f} m"]
@@ -188,9 +191,15 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
         given = "given" if mount_height_m is not None else "default; set with --height"
         notes.append(f"{len(implausible)} fixture(s) sit {implausible[0]:.3g} m above the storey's floor, no plausible "
                      f"mounting height; used {height:g} m ({given})")
-    if radius_m is None:
-        notes.append(f"LED radius {radius:g} m (default; the model gives none; set with --radius)")
-    return Layout(luminaires, None, where, unit, reason, tuple(notes))
+    if radius_m is None and sizes.measured:
+        radii = sorted({round(r, 4) for r in sizes.measured})
+        notes.append(f"LED radius from the fixtures' geometry: {', '.join(f'{r:g}' for r in radii[:4])}"
+                     f"{' ...' if len(radii) > 4 else ''} m (half the smaller side of each body; set with --radius)")
+    if radius_m is None and sizes.missing:
+        notes.append(f"{sizes.missing} fixture(s) have no geometry to measure; LED radius {DEFAULT_RADIUS_M:g} m "
+                     "(default; set with --radius)")
+    outline, outline_notes = space_outline(model, chosen[0][1])
+    return Layout(luminaires, outline, where, unit, reason, tuple(notes + outline_notes))
 
 
 def _type_name(fixture) -> str | None:

@@ -29,8 +29,10 @@ def _inside(inner: Polygon, outer: Polygon) -> bool:
                                                                             radius=1e-9).all())
 
 
-def floor_outline(polygons: Sequence[Polygon]) -> tuple[tuple[tuple[float, float], ...] | None, list[str]]:
-    """The floor from room and wall polygons [m]: ``(outline, notes)``; ``(None, [])`` without polygons."""
+def floor_outline(polygons: Sequence[Polygon], what: str = "closed polylines on wall/room layers"
+                  ) -> tuple[tuple[tuple[float, float], ...] | None, list[str]]:
+    """The floor from room and wall polygons [m] (``what`` they are, for the note): ``(outline, notes)``;
+    ``(None, [])`` without polygons."""
     polygons = [p for p in polygons if len(p) >= 3 and area_m2(list(p)) > 0]
     if not polygons:
         return None, []
@@ -51,7 +53,7 @@ def floor_outline(polygons: Sequence[Polygon]) -> tuple[tuple[tuple[float, float
         return tuple((float(x), float(y)) for x, y in largest), []
     main = orient(parts[0], 1.0).simplify(1e-6)
     coords = [(round(float(x), 9) + 0.0, round(float(y), 9) + 0.0) for x, y in list(main.exterior.coords)[:-1]]
-    notes = [f"room outline: the floor joined from {len(polygons)} closed polylines on wall/room layers "
+    notes = [f"room outline: the floor joined from {len(polygons)} {what} "
              f"({main.area:.1f} m2 within its outer boundary, largest single one {area_m2(list(largest)):.1f} m2)"]
     if len(parts) > 1:
         notes.append(f"room outline: {len(parts) - 1} separate part(s) of {sum(g.area for g in parts[1:]):.1f} m2 "

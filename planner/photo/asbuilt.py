@@ -3,19 +3,21 @@
 The photo's decoded LEDs are identified and located as any snapshot
 (:func:`planner.positioning.locate.locate`). A luminaire flashed with the wrong ID
 spoils that: no place explains its ID there. So if every LED together fits no one
-place, each is left out in turn and the photo is located on the others; exactly one
-place must remain (two places, or none, and the photo is not located). The located
+place, each is left out in turn and the photo is located on the others, then each two,
+up to :data:`MAX_LEFT_OUT` (always keeping three); at the fewest left out that fit, every
+fit must be one place (two places and the photo is not located). The located
 pose then says which luminaire of the plan each blob is (the one whose image centre
 lies nearest, within :data:`~planner.twin.twin.MATCH_SHARE` of its minor axis), and its
 decoded ID is compared with the plan's.
 
-Leaving one out finds one wrong luminaire a photo; with two or more wrong in one photo
-it is not located (take another photo with fewer of them, or more right ones).
+So up to :data:`MAX_LEFT_OUT` wrong luminaires are found in one photo; with more it is not
+located (take another photo with fewer of them, or more right ones).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 
@@ -30,6 +32,9 @@ from planner.twin.twin import MATCH_SHARE
 SAME_PLACE_M = 0.10
 """Two fixes of one photo this close together are the same place [m]."""
 
+MAX_LEFT_OUT = 3
+"""Most LEDs left out of a photo's fix: the wrong luminaires one photo can find."""
+
 
 @dataclass(frozen=True)
 class PhotoFix:
@@ -38,7 +43,7 @@ class PhotoFix:
     located: Located | None
     problem: str
     luminaire: list[int | None]  # per blob: index into the site, or None
-    left_out: int | None = None  # the blob left out of the fix (its ID fits no place), if any
+    left_out: tuple[int, ...] = ()  # the blobs left out of the fix (their IDs fit no place)
 
 
 def _snapshot(blobs: list[PhotoBlob], use: list[int], camera: Camera) -> Snapshot:
@@ -56,7 +61,8 @@ def read_and_planned(blobs: list[PhotoBlob], site: Site) -> list[int]:
 
 def locate_photo(site: Site, blobs: list[PhotoBlob], camera: Camera, method: str = "perspective",
                  max_residual_px: float = MAX_RESIDUAL_PX) -> PhotoFix:
-    """Locate a photo on ``site`` from its blobs with ``method``, leaving out one whose ID fits no place if need be."""
+    """Locate a photo on ``site`` from its blobs with ``method``, leaving out the fewest (up to
+    :data:`MAX_LEFT_OUT`) whose IDs fit no place if need be."""
     use = read_and_planned(blobs, site)
     none: list[int | None] = [None] * len(blobs)
     if not blobs:
@@ -67,26 +73,28 @@ def locate_photo(site: Site, blobs: list[PhotoBlob], camera: Camera, method: str
                         "three", none)
     try:
         return _matched(site, blobs, camera, locate(site, _snapshot(blobs, use, camera), method,
-                                                    max_residual_px), None)
+                                                    max_residual_px), ())
     except PositioningError as exc:
         first = str(exc)
-    fits: list[tuple[int, Located]] = []
-    for k in use if len(use) >= 4 else []:
-        try:
-            fits.append((k, locate(site, _snapshot(blobs, [j for j in use if j != k], camera), method,
-                                   max_residual_px)))
-        except PositioningError:
+    for count in range(1, min(MAX_LEFT_OUT, len(use) - 3) + 1):
+        fits: list[tuple[tuple[int, ...], Located]] = []
+        for out in combinations(use, count):
+            try:
+                fits.append((out, locate(site, _snapshot(blobs, [j for j in use if j not in out], camera), method,
+                                         max_residual_px)))
+            except PositioningError:
+                continue
+        if not fits:
             continue
-    places = [f for f in fits if all(np.linalg.norm(f[1].fix.position - g[1].fix.position) < SAME_PLACE_M
-                                     for g in fits)]
-    if not fits or len(places) != len(fits):
-        why = " (and leaving out any one LED fits two places)" if fits else ""
-        return PhotoFix(None, first + why, none)
-    k, found = min(fits, key=lambda f: f[1].fix.residual_px)
-    return _matched(site, blobs, camera, found, k)
+        if any(np.linalg.norm(f[1].fix.position - g[1].fix.position) >= SAME_PLACE_M for f in fits for g in fits):
+            return PhotoFix(None, f"{first} (and leaving out {count} LED(s) fits two places)", none)
+        out, found = min(fits, key=lambda f: f[1].fix.residual_px)
+        return _matched(site, blobs, camera, found, out)
+    return PhotoFix(None, first, none)
 
 
-def _matched(site: Site, blobs: list[PhotoBlob], camera: Camera, found: Located, left_out: int | None) -> PhotoFix:
+def _matched(site: Site, blobs: list[PhotoBlob], camera: Camera, found: Located, left_out: tuple[int, ...]
+             ) -> PhotoFix:
     """The fix with every blob matched to the luminaire whose image the pose puts at its centre."""
     pos, rot = found.fix.position, found.fix.rotation
     centres, shapes, ok = centre_and_shape(disc_dual_conic(pos, rot, site.xyz, site.radii, camera.ideal()))
@@ -161,7 +169,7 @@ def blob_documents(site: Site, blobs: list[PhotoBlob], fix: PhotoFix | None) -> 
         if fix is not None and fix.located is not None:
             planned = None if lum is None else int(site.ids[lum])
             doc.update(luminaire=None if lum is None else site.names[lum], planned_id=planned,
-                       verdict=verdict(b, planned), left_out=k == fix.left_out)
+                       verdict=verdict(b, planned), left_out=k in fix.left_out)
         out.append(doc)
     return out
 

@@ -3,8 +3,9 @@
 Every trial is a camera pose, the ellipses fitted to its image with the error terms at work
 (:mod:`planner.positioning.error_terms`; pixel noise alone is the observation model of
 :mod:`planner.positioning.observation`) and a position found by a method (``paper`` or
-``perspective``); the error is the distance [m] from the true camera centre. The budget runs
-each term alone and all together on the same poses.
+``perspective`` from three LEDs; on a site also ``gravity``, two LEDs plus the accelerometer's
+vertical, :mod:`planner.positioning.gravity`); the error is the distance [m] from the true camera
+centre. The budget runs each term alone and all together on the same poses.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.camera import Camera, Poses, rotation_from_angles
-from planner.defaults import ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
+from planner.defaults import ACCELEROMETER_SIGMA_DEG, ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
 from planner.plot_style import save_png, styled
 from planner.positioning.error_terms import (
@@ -29,7 +30,9 @@ from planner.positioning.error_terms import (
     observe_with,
     streams,
 )
+from planner.positioning.gravity import locate_gravity, window_order
 from planner.positioning.locate import METHODS
+from planner.positioning.observation import Sighting
 
 if TYPE_CHECKING:
     from planner.verify.windows import PoseSample
@@ -246,6 +249,12 @@ class SiteAccuracy:
         return edges[0], edges[1], med, p90
 
 
+def method_text(method: str) -> str:
+    """A method's name for summaries and figures; the gravity method says what it uses."""
+    return "gravity method (two whole LEDs plus gravity from the accelerometer)" if method == "gravity" else \
+        f"{method} method"
+
+
 def error_per_m2(area: np.ndarray, per_m2: float = ERROR_POSES_PER_M2) -> float:
     """Pose density of the error map over ``area`` [m]: ``per_m2``, but at most :data:`ERROR_MAX_POSES` in all."""
     from planner.layout.model import area_m2
@@ -255,24 +264,27 @@ def error_per_m2(area: np.ndarray, per_m2: float = ERROR_POSES_PER_M2) -> float:
 
 def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, method: str = "perspective",
                   per_m2: float = ERROR_POSES_PER_M2, seed: int = 0, terms: ErrorTerms = DEFAULT_TERMS,
-                  sample: PoseSample | None = None) -> SiteAccuracy:
+                  sample: PoseSample | None = None,
+                  accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)) -> SiteAccuracy:
     """Error map of ``method`` with ``terms`` over a site: poses sampled as the verification samples them,
     ``per_m2`` of floor but at most :data:`ERROR_MAX_POSES` (the first of ``sample``, a plan's one
     draw with seed ``seed``, if given); with two or more terms, the other runs of :func:`budget_runs`
-    (exact images, each term alone) on the first :data:`BUDGET_MAX_POSES` poses too."""
+    (exact images, each term alone) on the first :data:`BUDGET_MAX_POSES` poses too. The ``gravity``
+    method weighs its vertical by ``accelerometer_sigma_rad``; ``terms.gravity_rad`` is its actual error."""
     from planner.verify.windows import sample_poses, working_area
 
     area = working_area(xyz[:, :2], outline) if sample is None else sample.area
     per_m2 = error_per_m2(area, per_m2)
     cell = max(ERROR_CELL_M, math.ceil(2 * math.sqrt(8 / per_m2)) / 2)
     poses = sample_poses(area, camera, per_m2=per_m2, seed=seed) if sample is None else sample.first(per_m2)[0]
-    errors = site_errors(xyz, radii, poses, camera, method, terms, seed)
+    errors = site_errors(xyz, radii, poses, camera, method, terms, seed, accelerometer_sigma_rad)
     budget = {}
     if len(terms.active) > 1:
         first = poses.subset(slice(0, BUDGET_MAX_POSES))
         for name, run in budget_runs(terms).items():
             budget[name] = _quantiles(errors[:len(first)] if name == "all" else
-                                      site_errors(xyz, radii, first, camera, method, run, seed))
+                                      site_errors(xyz, radii, first, camera, method, run, seed,
+                                                  accelerometer_sigma_rad))
     return SiteAccuracy(method, terms, poses.position, errors, cell, budget)
 
 
@@ -284,17 +296,30 @@ def _quantiles(errors: np.ndarray) -> tuple[int, float | None, float | None]:
 
 
 def site_errors(xyz: np.ndarray, radii: np.ndarray, poses: Poses, camera: Camera, method: str = "perspective",
-                terms: ErrorTerms = PIXEL_ONLY, seed: int = 0) -> np.ndarray:
+                terms: ErrorTerms = PIXEL_ONLY, seed: int = 0,
+                accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)) -> np.ndarray:
     """Error [m] of ``method`` at every pose with ``terms`` at work (NaN where the pose gives no position),
-    identities known; the site is installed once (``terms.install_m``)."""
+    identities known; the site is installed once (``terms.install_m``).
+
+    ``gravity`` is the two-LED receiver: every pose draws the accelerometer's vertical (error
+    ``terms.gravity_rad``, the twin's model), two whole LEDs suffice, the two whose rays are nearest
+    the optical axis start the fix (its window) and every LED seen refines it."""
+    from planner.twin.twin import accelerometer  # the twin's accelerometer model, one for both
+
     rngs = streams(seed)
-    locate = METHODS[method]
     leds = installed(xyz, terms.install_m, rngs["install"])
     believed = camera.ideal()
     out = np.full(len(poses), np.nan)
     rotations = poses.rotation
     for k in range(len(poses)):
         seen = observe_with(poses.position[k], rotations[k], leds, radii, camera, terms, rngs)
-        if len(seen.index) >= 3:
-            out[k] = _error(locate, seen, xyz, radii, believed, poses.position[k])
+        if method == "gravity":
+            g = accelerometer(rotations[k], terms.gravity_rad, rngs["accelerometer"])
+            if len(seen.index) >= 2:
+                order = window_order(np.array([e.centre for e in seen.ellipses]), believed)
+                seen = Sighting(seen.index[order], [seen.ellipses[i] for i in order])
+                out[k] = _error(lambda x, r, e, c, g=g: locate_gravity(x, r, e, c, g, accelerometer_sigma_rad),
+                                seen, xyz, radii, believed, poses.position[k])
+        elif len(seen.index) >= 3:
+            out[k] = _error(METHODS[method], seen, xyz, radii, believed, poses.position[k])
     return out

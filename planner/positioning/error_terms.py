@@ -17,6 +17,9 @@ calibration is off, and a rolling shutter on a moving phone. The terms
 - **skew**: the rolling shutter exposes row ``v`` ``(v - cy) row_time_s`` after the
   middle row while the phone moves at ``speed_m_s`` in a random horizontal direction
   and turns at ``turn_rad_s`` about a random axis; the truth is the pose at the middle row.
+- **accelerometer**: the gravity receiver's measured vertical is the true one turned by
+  ``gravity_rad`` RMS (the twin's model, :func:`planner.twin.twin.accelerometer`); off (0) by
+  default, a gravity plan switches it on at its receiver's ``accelerometer_sigma_deg``.
 
 Each term draws from its own random stream, so a run with one term alone and a run
 with all share that term's draws.
@@ -49,11 +52,13 @@ TERMS = {
     "calibration": ("focal_rel", "principal_px", "distortion_px"),
     "edge": ("edge_px",),
     "skew": ("speed_m_s", "turn_rad_s"),
+    "accelerometer": ("gravity_rad",),
 }
 """The budget's terms and the :class:`ErrorTerms` fields each is made of."""
 
 TERM_NAMES = {"install": "luminaire install tolerance", "calibration": "camera calibration error",
-              "edge": "edge noise", "skew": "rolling-shutter skew", "exact": "the method's own error"}
+              "edge": "edge noise", "skew": "rolling-shutter skew",
+              "accelerometer": "accelerometer error", "exact": "the method's own error"}
 """What each term (and the run without any, ``exact``) is called in tables and reports."""
 
 
@@ -68,6 +73,7 @@ class ErrorTerms:
     edge_px: float = NOISE_PX
     speed_m_s: float = PHONE_SPEED_M_S
     turn_rad_s: float = math.radians(PHONE_TURN_DEG_S)
+    gravity_rad: float = 0.0  # the gravity receiver's only; its plans set it (module docstring)
 
     def only(self, term: str) -> ErrorTerms:
         """These terms with every one but ``term`` switched off."""
@@ -82,12 +88,13 @@ class ErrorTerms:
         """The terms as recorded (``plan.yaml``, ``--json``): SI units, the turn rate in degrees, focal in %."""
         return {"install_m": self.install_m, "focal_pct": round(100 * self.focal_rel, 6),
                 "principal_px": self.principal_px, "distortion_px": self.distortion_px, "edge_px": self.edge_px,
-                "speed_m_s": self.speed_m_s, "turn_deg_s": round(math.degrees(self.turn_rad_s), 6)}
+                "speed_m_s": self.speed_m_s, "turn_deg_s": round(math.degrees(self.turn_rad_s), 6),
+                "accelerometer_deg": round(math.degrees(self.gravity_rad), 6)}
 
     @classmethod
     def from_dict(cls, d: dict) -> ErrorTerms:
         return cls(d["install_m"], d["focal_pct"] / 100, d["principal_px"], d["distortion_px"], d["edge_px"],
-                   d["speed_m_s"], math.radians(d["turn_deg_s"]))
+                   d["speed_m_s"], math.radians(d["turn_deg_s"]), math.radians(d.get("accelerometer_deg", 0.0)))
 
 
 DEFAULT_TERMS = ErrorTerms()
@@ -107,7 +114,8 @@ def describe(terms: ErrorTerms) -> dict[str, str]:
             "calibration": f"1 sigma: focal length {100 * t.focal_rel:g} %, principal point {t.principal_px:g} px, "
                            f"distortion residual {t.distortion_px:g} px",
             "edge": f"{t.edge_px:g} px per edge point, then whole pixels",
-            "skew": f"phone at {t.speed_m_s:g} m/s turning {math.degrees(t.turn_rad_s):g} deg/s"}
+            "skew": f"phone at {t.speed_m_s:g} m/s turning {math.degrees(t.turn_rad_s):g} deg/s",
+            "accelerometer": f"1 sigma {math.degrees(t.gravity_rad):g} deg on the measured vertical"}
     return {name: text[name] for name in t.active}
 
 
@@ -132,8 +140,10 @@ def included_text(terms: ErrorTerms) -> str:
 
 
 def streams(seed: int) -> dict[str, np.random.Generator]:
-    """One random stream per term (and one for the poses' own draws), the same for every subset of terms."""
-    return {name: np.random.default_rng((seed, k)) for k, name in enumerate([*TERMS, "pose"])}
+    """One random stream per term (and one for the poses' own draws), the same for every subset of terms; the
+    accelerometer's comes after the poses', so the older streams kept their numbers."""
+    order = [*(t for t in TERMS if t != "accelerometer"), "pose", "accelerometer"]
+    return {name: np.random.default_rng((seed, k)) for k, name in enumerate(order)}
 
 
 def installed(xyz: np.ndarray, install_m: float, rng: np.random.Generator) -> np.ndarray:

@@ -128,6 +128,8 @@ def checklist(plan: PlanFile, journal: dict[str, dict] | None = None) -> list[St
 
 def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
     """The report's headline figures as (label, value) pairs, from the plan."""
+    from planner.positioning.accuracy import method_text
+
     code, mod, ver, acc = plan.code, plan.modulation, plan.verification, plan.accuracy
     regions = len(set(plan.regions.tolist()))
     rows = [
@@ -154,11 +156,11 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
                                  f"poses decodable by mode: {per}" + (f"; {100 * float(one):.1f} % of poses see exactly "
                                                                       "one whole LED" if one is not None else "")))
     if acc and acc.located and acc.median_m is not None and acc.p90_m is not None:
-        rows.append(("expected error", f"{acc.method} method: median {length_text(acc.median_m)}, 90 % "
+        rows.append(("expected error", f"{method_text(acc.method)}: median {length_text(acc.median_m)}, 90 % "
                                        f"{length_text(acc.p90_m)} ({acc.located} of {acc.poses} poses located); "
                                        f"{error_includes(plan)}"))
     elif acc:
-        rows.append(("expected error", f"{acc.method} method: none of {acc.poses} sampled poses located"))
+        rows.append(("expected error", f"{method_text(acc.method)}: none of {acc.poses} sampled poses located"))
     if acc and acc.dominant:
         alone = ", ".join(f"{_term_name(k)} {length_text(b.median_m)}" for k, b in acc.budget.items()
                           if k not in ("all", "exact") and b.median_m is not None)
@@ -197,7 +199,8 @@ def error_includes(plan: PlanFile) -> str:
         return (f"includes edge noise ({noise:g} px) only: " if noise is not None else "includes pixel noise only: ") + \
             "install, calibration and motion errors come on top (the plan predates the error budget)"
     terms = ErrorTerms.from_dict(acc.terms)
-    left = [name for name in ("install", "calibration", "edge", "skew") if name not in terms.active]
+    kinds = ("install", "calibration", "edge", "skew", *(("accelerometer",) if acc.method == "gravity" else ()))
+    left = [name for name in kinds if name not in terms.active]
     return f"includes {included_text(terms)}" + (f"; leaves out {', '.join(_term_name(n) for n in left)}" if left else "")
 
 
@@ -246,8 +249,11 @@ def advice_section(plan: PlanFile) -> AdviceSection | None:
     if plan.advice is None:
         return None
     a = plan.advice.model_dump()
+    measure = a.get("measure") or "share of sampled poses whose camera sees three whole, non-collinear LEDs"
+    frames = (f" A change that reaches it is also checked to fit its frames with drivers of "
+              f"{a['driver_max_hz'] / 1e3:g} kHz." if a.get("driver_max_hz") else "")
     note = (f"Changes tried to reach {100 * a['goal']:.0f} % of sampled poses, each measured on a coarse sample "
-            f"({a['poses_per_candidate']} poses, {a['poses_per_m2']:g} per m2) as the share whose camera sees three "
-            "whole, non-collinear LEDs. Sampled figures, not proved; plan the changed site to verify it."
+            f"({a['poses_per_candidate']} poses, {a['poses_per_m2']:g} per m2) as the {measure}.{frames} "
+            "Sampled figures, not proved; plan the changed site to verify it."
             if a["changes"] else "")
     return AdviceSection(verdict(a), note, table(a) if a["changes"] else [])

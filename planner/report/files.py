@@ -78,6 +78,7 @@ def write_report(plan: PlanFile, plan_hash: str, plan_dir: str | Path, outdir: s
 def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, journal: dict[str, dict] | None,
                   asbuilt: dict | None = None) -> list[Path]:
     from planner import __version__
+    from planner.positioning.accuracy import method_text
 
     route, _ = walking_order(plan.xy)
     stops = checklist(plan, journal)
@@ -91,7 +92,7 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     for anchor, file, name, caption in MAPS:
         png = plan_dir / file
         if anchor == "error" and plan.accuracy is not None:
-            caption = f"{caption}, {plan.accuracy.method} method; {error_includes(plan)}" + \
+            caption = f"{caption}, {method_text(plan.accuracy.method)}; {error_includes(plan)}" + \
                 ("; the budget below gives each term alone." if budget else ".")
         if anchor == "map" and show_class:
             caption += " Odd class filled, even hollow (the paper's checkerboard: odd IDs on odd luminaires)."

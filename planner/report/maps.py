@@ -196,6 +196,7 @@ def error_figure(plan: Plan):
 
     Dark is bad (large error); squares where no sampled pose gave a position are light grey.
     """
+    from planner.positioning.accuracy import method_text
     from planner.positioning.error_terms import TERM_NAMES
 
     acc = plan.accuracy
@@ -219,7 +220,8 @@ def error_figure(plan: Plan):
     axes[0].set_ylabel("y [m]")
     fig.colorbar(mesh, ax=list(axes), label=f"position error [{unit}]", fraction=0.03)
     s = acc.summary()
-    fig.suptitle(f"{Path(plan.layout.source_path).name}: {s['method']} method with "
-                 f"{', '.join(TERM_NAMES[k] for k in s['includes']) or 'exact images'}, "
-                 f"{s['located']} of {s['poses']} sampled poses located", fontsize=10)
+    title = (f"{Path(plan.layout.source_path).name}: {method_text(s['method'])} with "
+             f"{', '.join(TERM_NAMES[k] for k in s['includes']) or 'exact images'}, "
+             f"{s['located']} of {s['poses']} sampled poses located")
+    fig.suptitle(textwrap.fill(title, int(12 * fig.get_figwidth())), fontsize=10)  # about 12 characters per inch
     return fig

@@ -107,6 +107,9 @@ def test_a_calibration_and_a_row_time_go_into_one_camera_file(tmp_path, photos):
     found = read_camera(out)
     assert found.row_time_s == pytest.approx(15e-6, rel=0.005) and found.name == "my-phone"
     assert abs(found.fx_px / PINHOLE.fx_px - 1) < 0.005
+    comments = [line for line in out.read_text().splitlines() if line.startswith("#")]  # the summary's headlines
+    assert any("chessboard:" in c for c in comments) and any("RMS reprojection error" in c for c in comments)
+    assert any(c.startswith("#   row time: ") and shown[1] in c for c in comments)
 
 
 def _stripes(width: int, height: int, row_time_s: float, blink_hz: float, seed: int, chips: str = "10",

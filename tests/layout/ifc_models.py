@@ -24,8 +24,27 @@ def _placement(model, product, xyz_units) -> None:
     ifcopenshell.api.run("geometry.edit_object_placement", model, product=product, matrix=matrix, is_si=False)
 
 
+def _body(f, context, per_m: float, body: tuple[str, float]):
+    """A fixture body 5 cm deep: ("round", radius [m]) a disc, ("square", side [m]) a panel; SweptSolid."""
+    kind, size_m = body
+    centre = f.createIfcAxis2Placement2D(f.createIfcCartesianPoint((0.0, 0.0)))  # IFC2X3 requires it
+    if kind == "round":
+        profile = f.createIfcCircleProfileDef("AREA", None, centre, size_m * per_m)
+    else:
+        profile = f.createIfcRectangleProfileDef("AREA", None, centre, size_m * per_m, size_m * per_m)
+    return _extrusion(f, context, profile, 0.05 * per_m)
+
+
+def _extrusion(f, context, profile, depth):
+    """A body: ``profile`` extruded up by ``depth`` [model units]."""
+    solid = f.createIfcExtrudedAreaSolid(profile, f.createIfcAxis2Placement3D(f.createIfcCartesianPoint((0.0, 0.0, 0.0))),
+                                         f.createIfcDirection((0.0, 0.0, 1.0)), depth)
+    return f.createIfcShapeRepresentation(context, "Body", "SweptSolid", [solid])
+
+
 def model(schema: str = "IFC4", unit: str = "mm", storeys: dict[str, tuple[float, int, int]] | None = None,
-          spacing_m: float = 1.5, height_m: float = 2.7, extras: bool = True):
+          spacing_m: float = 1.5, height_m: float = 2.7, extras: bool = True, body: tuple[str, float] | None = None,
+          spaces: bool = False):
     """A model with ``storeys``: name -> (floor elevation [m], columns, rows) of light fixtures.
 
     IFC4 fixtures are ``IfcLightFixture``; IFC2X3 ones ``IfcFlowTerminal`` typed by an
@@ -48,7 +67,7 @@ def model(schema: str = "IFC4", unit: str = "mm", storeys: dict[str, tuple[float
     else:
         length = ifcopenshell.api.run("unit.add_si_unit", f, unit_type="LENGTHUNIT", prefix="MILLI" if unit == "mm" else None)
     ifcopenshell.api.run("unit.assign_unit", f, units=[length])
-    ifcopenshell.api.run("context.add_context", f, context_type="Model")
+    context = ifcopenshell.api.run("context.add_context", f, context_type="Model")
     site = ifcopenshell.api.run("root.create_entity", f, ifc_class="IfcSite", name="Site")
     building = ifcopenshell.api.run("root.create_entity", f, ifc_class="IfcBuilding", name="Building")
     ifcopenshell.api.run("aggregate.assign_object", f, products=[site], relating_object=project)
@@ -58,6 +77,9 @@ def model(schema: str = "IFC4", unit: str = "mm", storeys: dict[str, tuple[float
     light_type = None
     if schema == "IFC2X3":
         light_type = ifcopenshell.api.run("root.create_entity", f, ifc_class="IfcLightFixtureType", name="Downlight 150")
+    shape = _body(f, context, per_m, body) if body else None
+    if shape is not None and light_type is not None:  # the type holds the shape; assign_type maps it to each fixture
+        ifcopenshell.api.run("geometry.assign_representation", f, product=light_type, representation=shape)
     expected = {}
     for s_index, (name, (elevation_m, cols, rows)) in enumerate(storeys.items()):
         storey = ifcopenshell.api.run("root.create_entity", f, ifc_class="IfcBuildingStorey", name=name)
@@ -74,9 +96,23 @@ def model(schema: str = "IFC4", unit: str = "mm", storeys: dict[str, tuple[float
                 _placement(f, fixture, (x * per_m, y * per_m, (elevation_m + height_m) * per_m))
                 if light_type is not None:
                     ifcopenshell.api.run("type.assign_type", f, related_objects=[fixture], relating_type=light_type)
+                if shape is not None and light_type is None:
+                    fixture.Representation = f.createIfcProductDefinitionShape(None, None, [shape])
                 xyz.append((x, y, height_m))
         arr = np.array(xyz)
         expected[name] = arr[np.lexsort((arr[:, 0], arr[:, 1]))]
+        if spaces:
+            lo, hi = arr[:, :2].min(axis=0) - 1.0, arr[:, :2].max(axis=0) + 1.0
+            middle = 0.5 * (lo[0] + hi[0])
+            for k, (x0, x1) in enumerate(((lo[0], middle), (middle, hi[0]))):
+                room = ifcopenshell.api.run("root.create_entity", f, ifc_class="IfcSpace", name=f"Room {k + 1}")
+                ifcopenshell.api.run("aggregate.assign_object", f, products=[room], relating_object=storey)
+                _placement(f, room, (x0 * per_m, lo[1] * per_m, elevation_m * per_m))
+                room.Representation = f.createIfcProductDefinitionShape(None, None, [_extrusion(
+                    f, context, f.createIfcRectangleProfileDef(
+                        "AREA", None, f.createIfcAxis2Placement2D(f.createIfcCartesianPoint(
+                            ((x1 - x0) / 2 * per_m, (hi[1] - lo[1]) / 2 * per_m))), (x1 - x0) * per_m,
+                        (hi[1] - lo[1]) * per_m), 3.0 * per_m)])
         if extras and s_index == 0:
             if schema == "IFC2X3":
                 terminal = ifcopenshell.api.run("root.create_entity", f, ifc_class="IfcFlowTerminal", name="Diffuser")

@@ -7,12 +7,14 @@ import json
 import ifc_models
 import ifcopenshell
 import ifcopenshell.util.element
+import numpy as np
 import pytest
 import yaml
 from numpy.testing import assert_allclose
 
 from planner.errors import InputError, UsageError
 from planner.layout.ifc import read_ifc
+from planner.layout.model import area_m2
 from planner.pipeline import ReadOptions, read_layout
 
 
@@ -52,6 +54,39 @@ def test_ifc4_light_fixtures_in_millimetres_need_a_storey(ifc4_two_storeys):
     assert_allclose(ground.xyz, expected["Ground"], atol=1e-9)
     with pytest.raises(InputError, match=r"--storey 'Roof' holds no light fixtures; storeys with fixtures: 'Ground'"):
         read_layout(path, None, ReadOptions(storey="Roof"))
+
+
+@pytest.mark.parametrize("schema, unit, body, radius_m", [
+    ("IFC4", "mm", ("round", 0.09), 0.09),  # a downlight: its disc's radius
+    ("IFC2X3", "ft", ("square", 0.6), 0.3),  # a 600 mm panel mapped from its type: half its side
+])
+def test_ifc_led_radius_from_the_fixture_body(tmp_path, schema, unit, body, radius_m):
+    model, _ = ifc_models.model(schema, unit, body=body)
+    layout = read_layout(ifc_models.save(model, tmp_path / "bodies.ifc"), 12)
+    assert_allclose([lum.radius for lum in layout.luminaires], radius_m, rtol=1e-4)  # a meshed disc
+    assert any(n.startswith(f"LED radius from the fixtures' geometry: {radius_m:g} m") for n in layout.notes)
+    given = read_ifc(tmp_path / "bodies.ifc", radius_m=0.05)  # --radius wins
+    assert {lum.radius for lum in given.luminaires} == {0.05} and not any("geometry" in n for n in given.notes)
+
+
+def test_ifc_fixtures_without_geometry_take_the_default_radius(ifc2x3_feet):
+    layout = read_layout(ifc2x3_feet[0], 12)
+    assert {lum.radius for lum in layout.luminaires} == {0.1}
+    assert any(n.startswith("12 fixture(s) have no geometry to measure; LED radius 0.1 m") for n in layout.notes)
+
+
+@pytest.mark.parametrize("schema, unit", [("IFC4", "mm"), ("IFC2X3", "ft")])
+def test_ifc_room_outline_from_the_storeys_spaces(tmp_path, schema, unit):
+    model, expected = ifc_models.model(schema, unit, {"Ground": (0.0, 4, 3), "First": (3.5, 3, 3)}, spaces=True)
+    path = ifc_models.save(model, tmp_path / "spaces.ifc")
+    first = read_layout(path, 9, ReadOptions(storey="First"))
+    lo, hi = expected["First"][:, :2].min(axis=0) - 1.0, expected["First"][:, :2].max(axis=0) + 1.0
+    outline = np.array(first.outline)  # the two rooms joined: one rectangle, the first storey's
+    assert_allclose(outline.min(axis=0), lo, atol=1e-6) and assert_allclose(outline.max(axis=0), hi, atol=1e-6)
+    assert abs(area_m2(first.outline) - np.prod(hi - lo)) < 1e-6
+    assert any(n.startswith("room outline: the floor joined from 2 space footprints") for n in first.notes)
+    without = read_layout(ifc_models.save(ifc_models.model(schema, unit)[0], tmp_path / "none.ifc"), 12)
+    assert without.outline is None
 
 
 def test_ifc_flags_that_do_not_apply(ifc2x3_feet, tmp_path):

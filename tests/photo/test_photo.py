@@ -193,6 +193,26 @@ def test_the_as_built_check_flags_the_luminaire_playing_a_wrong_id(plan, tmp_pat
     assert "As-built check" in pdf and wrong in pdf
 
 
+def test_two_wrong_luminaires_in_one_photo_are_both_found(plan, tmp_path):
+    """Two of the paper's window (the LEDs nearest the image centre) play wrong IDs: leaving out two (the fewest
+    that fit one place) finds both; the fix is the others'."""
+    doc = load_plan(plan)
+    wrong = _seen(plan, WRONG_POSE)[:2]
+    chips, plays = list(doc.frames), {}
+    for name in wrong:
+        k = doc.names.index(name)
+        plays[name] = int(doc.ids[k]) % 16 + 1
+        chips[k] = frame_chips(plays[name] - 1, doc.code.word_bits, line_code("manchester"))
+    truth, _ = photograph(plan, WRONG_POSE, tmp_path / "two.png", chips=chips, seed=4)
+    done = _run("vlp-locate", str(plan), "--image", str(tmp_path / "two.png"), "--json")
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert np.linalg.norm(np.array(out["position_m"]) - truth) < 0.01
+    left = sorted((b["luminaire"], b["id"], b["verdict"]) for b in out["photo"]["blobs"] if b["left_out"])
+    assert left == sorted((name, plays[name], "wrong") for name in wrong)
+    assert all(b["verdict"] == "right" for b in out["photo"]["blobs"] if b["id"] is not None and not b["left_out"])
+
+
 def test_a_photo_of_foreign_leds_lists_what_was_seen_and_exits_non_zero(plan, tmp_path):
     """LEDs that are not ours: PWM-dimmed at two rates, and steady; the blob list says what each showed."""
     doc = load_plan(plan)
