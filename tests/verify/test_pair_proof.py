@@ -116,6 +116,31 @@ def test_every_exact_two_led_window_of_an_installed_site_is_in_the_proved_set(ji
     assert not windows - proved, sorted(windows - proved)[:3]
 
 
+@pytest.mark.parametrize("seed, mixed, camera", [(1, False, "paper"), (5, True, "paper"), (8, False, "wide")])
+def test_random_installed_sites_have_every_exact_window_in_the_proved_set(seed, mixed, camera):
+    """Rotated, stretched, jittered lattices with gaps (pitch 0.35-1.2 m), discs of two sizes, a distorting lens."""
+    from planner.camera_file import camera_profile
+
+    cam = Camera() if camera == "paper" else camera_profile(camera)
+    rng = np.random.default_rng(100 + seed)
+    pitch = rng.uniform(0.35, 1.2)
+    xy = grid_xy(int(rng.integers(3, 9)), int(rng.integers(3, 10)), pitch, pitch * rng.uniform(0.7, 1.4),
+                 angle_rad=rng.uniform(0, 1), jitter_m=rng.uniform(0, 0.3) * pitch, seed=seed)
+    xy = xy[rng.random(len(xy)) > 0.2]
+    radii = np.where(rng.random(len(xy)) < 0.5, 0.1, 0.15) if mixed else np.full(len(xy), 0.1)
+    area = working_area(xy, None)
+    proof = prove_pair_set(np.column_stack([xy, np.full(len(xy), 2.5)]), radii, cam, 0.03, area)
+    assert proof.complete, proof.reason
+    proved = {tuple(p) for p in proof.pairs.tolist()}
+    installed = _installed(xy, rng)
+    poses = sample_poses(area, cam, 3000.0, seed)
+    windows = set()
+    for part in range(0, len(poses), 4000):
+        windows |= {tuple(p) for p in exact_pairs(installed, radii, cam, poses.subset(slice(part, part + 4000))).tolist()}
+    assert len(windows) > 20
+    assert not windows - proved, sorted(windows - proved)[:3]
+
+
 def test_a_site_off_one_ceiling_plane_is_refused_with_the_reason():
     xyz = np.column_stack([grid_xy(4, 4, 0.5, 0.5), np.r_[np.full(15, 2.5), 2.8]])
     proof = prove_pair_set(xyz, np.full(16, 0.1), Camera(), 0.03)
