@@ -8,13 +8,15 @@ member, and the level set ``E(θ)`` (the ceiling points within ``θ`` of the axi
 * **A** (``θ2 <= α'``): both are wholly seen and no other LED lies inside ``E(θ2)``, which holds
   the ``R``-spindle of ``a, b``: so no other LED lies in that spindle (the three-LED proof allows
   one, the unknown third member; here none).
-* **B** (``θ2 > α'``): ``E(α')`` holds the axis disc ``D(q, ρ)`` and no LED but ``a, b``, and every
-  LED in ``conv({a, b} ∪ D(q, ρ))`` with a disc no larger than theirs is wholly seen and nearer,
-  so that hull holds none. It holds a triangle on ``ab`` with its apex ``ρ`` from the line on
-  ``q``'s side, so an LED deep in every such triangle excludes ``q`` on that side; ``q`` on the
-  line belongs to both sides.
+* **B** (``θ2 > α'``): ``E(α')`` holds the axis disc ``D(q, ρ)`` and no LED but ``a, b``, both lie in
+  the view ``E(κ)``, and every LED in ``conv({a, b} ∪ D(q, ρ))`` with a disc no larger than theirs is
+  wholly seen and nearer, so that hull holds none. Searched once for the site over cells of axis
+  points (:mod:`planner.verify.pair_cells`).
 
 A pair is excluded only when both cases are; what is left is a superset of every two-LED window.
+The envelope is cut into :data:`SLICES` ranges of ceiling distance and tilt, each proved with its own
+sure cone, sure disc ``ρ = L sin α'`` (``L`` the least distance to the axis point), reach, spindle and
+view box (:class:`PairEnvelope`); a pair is kept if some range keeps it.
 Installed luminaires lie up to ``d`` from the drawing, counted as in the three-LED proof (an LED
 counts against a pair only when deeper than ``2 d``; spindles over every centre within ``R + d``).
 """
@@ -22,113 +24,27 @@ counts against a pair only when deeper than ``2 d``; spindles over every centre 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.camera import Camera
 from planner.verify.envelope import Envelope, NotProvable, ceiling_distances
-from planner.verify.proof import (  # the three-LED proof's geometric tests: they take any pair and LEDs
-    MIN_CELL_M,
-    NEAR,
-    PAIR_BUDGET,
-    _apex_cover,
-    _hull_depth,
-    _near,
-    _spindle_count,
-    _strip,
-)
+from planner.verify.pair_cells import case_b_pairs
+from planner.verify.proof import NEAR, PAIR_BUDGET, _near, _spindle_count  # the three-LED proof's spindle test
 
-SEARCH_BUDGET = 3_000
-"""Most pairs whose axis points are searched by cells (about 14 ms each, measured on grid-32);
-beyond it the site is not proved (it is sampled). grid-256 needs 21,218 (2026-12-03)."""
+SLICES = (4, 4)
+"""The envelope is cut into this many ranges of ceiling distance and of tilt; each range has its own sure
+disc, reach and spindle (a pair is kept if some range keeps it)."""
 
 _CHUNK = 20_000
-_CELL_CHUNK = 4000
-_NEAR_CELL = 4
-"""LEDs nearest each cell's centre tested against it, beside those nearest the pair's middle."""
 
 
-def _depth_in_triangles(a: np.ndarray, b: np.ndarray, apex: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Depth of ``x`` (C, K, 2) in the triangles ``a b apex_j`` (a, b (C, 2), apex (C, J, 2)), least over ``j``
-    (C, K); negative outside one of them."""
-    p = [np.broadcast_to(a[:, None], apex.shape), np.broadcast_to(b[:, None], apex.shape), apex]
-    orient = np.sign((p[1][..., 0] - p[0][..., 0]) * (p[2][..., 1] - p[0][..., 1])
-                     - (p[1][..., 1] - p[0][..., 1]) * (p[2][..., 0] - p[0][..., 0]))  # (C, J)
-    depth = np.full(x.shape[:2] + apex.shape[1:2], np.inf)
-    for i in range(3):
-        u, v = p[i], p[(i + 1) % 3]
-        e = v - u
-        length = np.maximum(np.linalg.norm(e, axis=-1), 1e-12)
-        cross = e[:, None, :, 0] * (x[:, :, None, 1] - u[:, None, :, 1]) - e[:, None, :, 1] * (x[:, :, None, 0] - u[:, None, :, 0])
-        depth = np.minimum(depth, orient[:, None] * cross / length[:, None])
-    return np.where((orient != 0)[:, None], depth, -np.inf).min(axis=2)
-
-
-def _axis_alive(xy: np.ndarray, radii: np.ndarray, pairs: np.ndarray, env: Envelope, tree: cKDTree) -> np.ndarray:
-    """Whether some axis point ``q`` of case B is not excluded for each pair (M, 2), by cells.
-
-    ``q`` lies within the axis reach of both members. A cell (centre ``q0``, half-side ``s``) is
-    excluded when it lies beyond that reach, when another LED lies within ``ρ - d - s sqrt 2`` of
-    ``q0`` (it would lie in ``E(α')`` for every ``q`` of the cell), or when a disc no larger than the
-    members' lies deeper than ``2 d`` in ``conv({a, b} ∪ D(q0, ρ - s sqrt 2))``, or in every triangle
-    ``a b c`` for the cell's corners ``c`` (the axis points ``q`` with that LED deep in ``a b q`` form
-    a convex set, the meet of two wedges; every hull holds its triangle ``a b q``). A pair is kept as soon
-    as a cell centre is not excluded with the full ``ρ``, or a cell reaches :data:`MIN_CELL_M`.
-    """
-    n = len(xy)
-    a, b = xy[pairs[:, 0]], xy[pairs[:, 1]]
-    near = _near(tree, 0.5 * (a + b), min(NEAR, n))
-    smallest = radii[pairs].min(axis=1)
-    reach, rho, d, m = env.axis_reach_m, env.disc_m, env.install_m, 2.0 * env.install_m + 1e-9
-    area = np.array(env.axis_area) if isinstance(env, PairEnvelope) and env.axis_area else None
-    spread = env.axis_spread_m if isinstance(env, PairEnvelope) else math.inf
-    alive = np.zeros(len(pairs), dtype=bool)
-    which = np.arange(len(pairs))
-    centre, half = 0.5 * (a + b), np.full(len(pairs), reach)
-    off = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)
-
-    def excluded(w, q, grow):
-        out = np.zeros(len(w), dtype=bool)
-        for c in range(0, len(w), _CELL_CHUNK):
-            sl = slice(c, c + _CELL_CHUNK)
-            ww, qq, gg = w[sl], q[sl], grow[sl]
-            out[sl] |= (np.linalg.norm(qq - a[ww], axis=1) - gg > reach) | (np.linalg.norm(qq - b[ww], axis=1) - gg > reach)
-            if area is not None:  # the camera stands in the working area: the axis point within the spread of it
-                out[sl] |= _outside_by(qq, area) - gg > spread
-            cand = np.hstack([near[ww], _near(tree, qq, min(_NEAR_CELL, n))])
-            other = (cand != pairs[ww, :1]) & (cand != pairs[ww, 1:])
-            close = np.linalg.norm(xy[cand] - qq[:, None], axis=2) < rho - d - gg[:, None]
-            out[sl] |= (close & other).any(axis=1)
-            small_all = radii[cand] <= smallest[ww][:, None]
-            corners = qq[:, None] + (gg / np.sqrt(2))[:, None, None] * off[None]
-            deep = _depth_in_triangles(a[ww], b[ww], corners, xy[cand]) > m
-            out[sl] |= (deep & other & small_all).any(axis=1)
-            r = rho - gg
-            ok = (r > 0) & ~out[sl]
-            if ok.any():
-                tri = np.stack([a[ww[ok]], b[ww[ok]], b[ww[ok]]], axis=1)
-                depth = _hull_depth(tri, qq[ok], r[ok], xy[cand[ok]])
-                small = radii[cand[ok]] <= smallest[ww[ok]][:, None]
-                out[np.flatnonzero(ok) + c] |= ((depth > m) & other[ok] & small).any(axis=1)
-        return out
-
-    while len(which):
-        free = ~excluded(which, centre, np.zeros(len(which)))
-        alive[which[free]] = True
-        gone = excluded(which, centre, half * np.sqrt(2))
-        alive[which[~gone & (half <= MIN_CELL_M)]] = True
-        keep = ~gone & (half > MIN_CELL_M) & ~alive[which]
-        which, centre, half = which[keep], centre[keep], half[keep] / 2
-        centre = (centre[:, None, :] + off[None] * half[:, None, None]).reshape(-1, 2)
-        which, half = np.repeat(which, 4), np.repeat(half, 4)
-    return alive
-
-
-def possible_window_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = PAIR_BUDGET) -> np.ndarray:
-    """Pairs ``i < j`` (M, 2) that may be the two-LED window at some pose of the envelope;
-    :class:`NotProvable` when more than ``budget`` pairs lie within reach."""
+def possible_window_pairs(xy: np.ndarray, radii: np.ndarray, env: PairEnvelope, budget: int = PAIR_BUDGET) -> np.ndarray:
+    """Pairs ``i < j`` (M, 2) that may be the two-LED window at some pose of the envelope: the union over
+    its slices (:meth:`PairEnvelope.slices`) of case A's and case B's; :class:`NotProvable` when more than
+    ``budget`` pairs lie within reach."""
     n = len(xy)
     tree = cKDTree(xy)
     pairs = tree.query_pairs(env.reach_m + 2 * env.install_m, output_type="ndarray").astype(np.int64).reshape(-1, 2)
@@ -137,31 +53,27 @@ def possible_window_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budg
                           f"{env.reach_m:.2f} m, over the proof's budget of {budget:,}")
     if len(pairs) == 0 or n < 3:
         return pairs
-    keep = np.zeros(len(pairs), dtype=bool)
-    undecided = np.zeros(len(pairs), dtype=bool)
-    for start in range(0, len(pairs), _CHUNK):
-        pr = pairs[start:start + _CHUNK]
-        a, b = xy[pr[:, 0]], xy[pr[:, 1]]
-        near = _near(tree, 0.5 * (a + b), min(NEAR, n))
-        valid = (near != pr[:, :1]) & (near != pr[:, 1:])
-        case_a = _spindle_count(a, b, xy[near], valid, env) == 0
-        strip = _strip(tree, a, b, env.disc_m, n)
-        sv = (strip >= 0) & (strip != pr[:, :1]) & (strip != pr[:, 1:])
-        sv &= radii[np.maximum(strip, 0)] <= radii[pr].min(axis=1)[:, None]
-        xs = xy[np.maximum(strip, 0)]
-        case_b = (_apex_cover(a, b, xs, sv, env, 1.0) < 1) | (_apex_cover(a, b, xs, sv, env, -1.0) < 1)
-        keep[start:start + len(pr)] = case_a
-        undecided[start:start + len(pr)] = case_b & ~case_a  # beyond the line not excluded: search the axis points
-    if undecided.sum() > SEARCH_BUDGET:
-        raise NotProvable(f"{int(undecided.sum()):,} pairs need the search of their axis points, over the pair "
-                          f"proof's budget of {SEARCH_BUDGET:,}")
-    keep[undecided] = _axis_alive(xy, radii, pairs[undecided], env, tree)
-    return pairs[keep]
+    area = np.array(env.axis_area) if env.axis_area else None
+    kept = np.zeros(len(pairs), dtype=bool)
+    code = pairs[:, 0] * n + pairs[:, 1]
+    length = np.linalg.norm(xy[pairs[:, 0]] - xy[pairs[:, 1]], axis=1)
+    for sl in env.slices():
+        short = np.flatnonzero(~kept & (length <= sl.sure_diameter_m + 2 * sl.install_m))
+        for start in range(0, len(short), _CHUNK):
+            pr = pairs[short[start:start + _CHUNK]]
+            a, b = xy[pr[:, 0]], xy[pr[:, 1]]
+            near = _near(tree, 0.5 * (a + b), min(NEAR, n))
+            valid = (near != pr[:, :1]) & (near != pr[:, 1:])
+            kept[short[start:start + _CHUNK]] |= _spindle_count(a, b, xy[near], valid, sl) == 0
+        served = case_b_pairs(xy, radii, sl, area, sl.axis_spread_m, _outside_by, pairs[kept])
+        kept |= np.isin(code, served[:, 0] * n + served[:, 1])
+    return pairs[kept]
 
 
 @dataclass(frozen=True)
 class PairEnvelope(Envelope):
-    """The proof's envelope with the lens's true angles and two bounds that keep it finite past the horizon.
+    """The proof's envelope with the lens's true angles, two bounds that keep it finite past the horizon,
+    and the least tilt (a slice of the envelope, :meth:`slices`, has one above 0).
 
     The camera stands in the working area, so the axis point lies within ``far tan(tilt)`` of it
     (``axis_area``, ``axis_spread_m``); two LEDs in view are two LEDs of the site, no farther apart
@@ -172,10 +84,21 @@ class PairEnvelope(Envelope):
     axis_bound_m: float = math.inf
     axis_spread_m: float = math.inf
     axis_area: tuple = ()
+    tilt_min_rad: float = 0.0
+    view_inscribed_rad: float = math.inf
+    area_diameter_m: float = math.inf
+    led_radius_m: float = 0.0
 
     @property
     def _bounded(self) -> bool:
         return self.tilt_rad + self.corner_rad < math.pi / 2 - 1e-9
+
+    @property
+    def disc_m(self) -> float:
+        """``ρ = L sin α'`` with ``L = near / cos(least tilt)`` the least distance to the axis point: a point
+        ``s`` from the axis point lies within ``asin(s / L)`` of the axis at any tilt (the largest angle over
+        directions, ``tan θ = s sqrt(1 - c²) / (L + s c)``, is at ``c = -s / L``)."""
+        return self.near_m / math.cos(self.tilt_min_rad) * math.sin(self.sure_rad)
 
     @property
     def reach_m(self) -> float:
@@ -185,10 +108,46 @@ class PairEnvelope(Envelope):
     def axis_reach_m(self) -> float:
         return min(super().axis_reach_m if self._bounded else math.inf, self.axis_bound_m)
 
+    @property
+    def view_back_m(self) -> float:
+        """Farthest a point in view lies behind the axis point, against the tilt (``E(κ)``'s near end) [m]."""
+        k = self.corner_rad
+        return max(self.far_m * (math.tan(t) - math.tan(t - k)) for t in (self.tilt_min_rad, self.tilt_rad))
+
+    @property
+    def view_side_m(self) -> float:
+        """Farthest a point in view lies to the side of the tilt's plane (``E(κ)``'s semi-minor axis,
+        ``h sin κ / sqrt(cos² τ - sin² κ)``) [m]; infinite past the horizon."""
+        c, k = math.cos(self.tilt_rad), math.sin(self.corner_rad)
+        return self.far_m * k / math.sqrt(c * c - k * k) if c > k + 1e-9 else math.inf
+
+    @property
+    def sure_diameter_m(self) -> float:
+        """Farthest apart two points within ``α'`` of the axis lie (the major axis of ``E(α')``) [m]: case A's pairs."""
+        t, th = self.tilt_rad, self.sure_rad
+        return self.far_m * (math.tan(t + th) - math.tan(t - th)) if t + th < math.pi / 2 - 1e-9 else self.reach_m
+
+    def slices(self) -> list[PairEnvelope]:
+        """The envelope cut into :data:`SLICES` ranges of ceiling distance and tilt, each a sound envelope for
+        the poses in it: its own sure cone (the disc's angular radius at its nearest distance), sure disc,
+        reach, spindle and spread (at its farthest distance and largest tilt)."""
+        hs = np.linspace(self.near_m, self.far_m, SLICES[0] + 1)
+        ts = np.linspace(0.0, self.tilt_rad, SLICES[1] + 1)
+        out = []
+        for h0, h1 in zip(hs[:-1], hs[1:]):
+            disc = math.asin(self.led_radius_m / h0)
+            for t0, t1 in zip(ts[:-1], ts[1:]):
+                inscribed = min(self.view_inscribed_rad, SURE_CAP_RAD - t1 + disc)
+                spread = h1 * math.tan(t1)
+                out.append(replace(self, near_m=float(h0), far_m=float(h1), tilt_rad=float(t1), tilt_min_rad=float(t0),
+                                   inscribed_rad=inscribed, disc_rad=disc, axis_spread_m=spread,
+                                   axis_bound_m=self.area_diameter_m + spread + 2 * self.install_m))
+        return out
+
     def summary(self) -> dict:
         out = {k: v for k, v in super().summary().items() if self._bounded or "reach" not in k}
         out.update(reach_m=round(self.reach_m, 4), axis_reach_m=round(self.axis_reach_m, 4),
-                   axis_within_m_of_working_area=round(self.axis_spread_m, 4))
+                   axis_within_m_of_working_area=round(self.axis_spread_m, 4), slices=list(SLICES))
         return out
 
 
@@ -222,7 +181,8 @@ def pair_envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_to
     return PairEnvelope(ceiling, near, far, camera.max_tilt_rad, inscribed, float(corners.max()), disc,
                         float(install_tolerance_m), led_diameter + 2 * install_tolerance_m,
                         diameter + spread + 2 * install_tolerance_m, spread,
-                        tuple(map(tuple, np.asarray(area, float))) if area is not None else ())
+                        tuple(map(tuple, np.asarray(area, float))) if area is not None else (),
+                        0.0, float(edges.min()), diameter, r)
 
 
 def _outside_by(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:

@@ -50,7 +50,7 @@ def test_a_change_whose_frames_do_not_fit_says_which_drivers_it_needs(advice):
     assert not remark.startswith("recommended")
 
 
-@pytest.mark.slow  # two more plans of the room, about 15 s
+@pytest.mark.slow  # two more plans of the room, each proved: about 70 s
 def test_the_planner_agrees_the_frames_do_not_fit_without_the_drivers_and_do_with_them(advice):
     tmp, a = advice
     row = _gravity_row(a)
