@@ -10,6 +10,7 @@ mappings; keys this version does not read are kept too.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from functools import cached_property
 from pathlib import Path
@@ -304,6 +305,18 @@ class PlanFile(_Section):
     def receiver_mode(self) -> str:
         """``three`` (the paper's receiver; no ``receiver`` section) or ``gravity``."""
         return str((self.receiver or {}).get("mode", "three"))
+
+    @property
+    def window_length_cap_m(self) -> float | None:
+        """A gravity plan's cap on its two-LED window's length [m] (``verification.window_set``), or None."""
+        window_set = (self.verification.window_set if self.verification else None) or {}
+        cap = window_set.get("window_length_cap_m")
+        if cap is None or self.receiver_mode != "gravity":
+            return None
+        if isinstance(cap, bool) or not isinstance(cap, (int, float)) or not 0 < cap < math.inf:
+            raise InputError(f"verification.window_set.window_length_cap_m: {cap!r} is not a length > 0 m; "
+                             "re-plan, or restore the value vlp-plan wrote")
+        return float(cap)
 
     def camera_model(self) -> Camera:
         """The camera the plan was made for."""

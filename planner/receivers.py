@@ -27,6 +27,7 @@ from planner.verify.pair_windows import (
     check_pair_set,
     classify_pairs,
     find_pairs,
+    length_cap_m,
     pair_lengths,
     site_pairs,
 )
@@ -91,11 +92,8 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
 
     made: dict[str, tuple[Assignment, Verification]] = {}
     if scheme in ("window", "auto"):
-        if proof.pairs is not None:
-            design = proof.pairs
-        else:  # every site pair up to the longest sampled window (plus the tolerance): what the check checks
-            bound = float(pair_lengths(sampled, xyz).max()) + tolerance_m if len(sampled) else 0.0
-            design = site_pairs(xyz, bound)
+        cap = length_cap_m(sampled, xyz, tolerance_m)  # what the check checks: pairs up to the window rule's cap
+        design = site_pairs(xyz, cap) if proof.pairs is None else proof.pairs[pair_lengths(proof.pairs, xyz) <= cap + 1e-9]
         made["window"] = verified(assign_pairs(xyz, graph, design, tolerance_m=tolerance_m, seed=seed,
                                                proved=proof.complete, time_budget=time_budget))
     if scheme in ("paper", "auto"):

@@ -241,11 +241,16 @@ def verification_line(v: dict) -> str:
         what, other = ("pairs", "pair") if two else ("triangles", "triple")
         bound = ("every pose of the envelope" if w.get("complete") else
                  f"empty, sides up to {w['max_length_m' if two else 'max_side_m']:g} m from samples")
-        line += (f"\n  windows  {w[what]} {what} that may be windows ({bound}, installed within "
+        cap = w.get("window_length_cap_m")
+        capped = "" if cap is None else (f" up to {cap:g} m long (the receiver reads no longer pair; the proof keeps "
+                                         f"{w['proved_pairs_beyond_cap']:,} longer ones)")
+        line += (f"\n  windows  {w[what]} {what}{capped} that may be windows ({bound}, installed within "
                  f"{w['install_tolerance_m']:g} m): {w['read_alike']} read like another {other}")
         if w["first_conflicts"]:
             line += "; first: " + " vs ".join("(" + ", ".join(t) + ")" for t in w["first_conflicts"][0][:2])
-        line += ("\n  proof    every pose of the envelope that sees a window names one place: proved" if w.get("proved") else
+        seen = (f"whose two nearest whole LEDs are at most {cap:g} m apart" if cap is not None else
+                 "that sees a window")
+        line += (f"\n  proof    every pose of the envelope {seen} names one place: proved" if w.get("proved") else
                  "\n  proof    not proved: " + (w.get("not_proved_because") or f"a {other} that may be a window "
                                                  f"reads like another {other}"))
     return line

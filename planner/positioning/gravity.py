@@ -102,7 +102,8 @@ def window_order(centres_px: np.ndarray, camera: Camera) -> np.ndarray:
 def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
     """The one place whose luminaires explain the snapshot, from its two-LED window and gravity.
 
-    Every pair of luminaires carrying the window's two IDs is tried: closed form, the other LEDs
+    Every pair of luminaires carrying the window's two IDs (no farther apart than the plan's window
+    length cap, where it has one: a longer pair is no window of the plan) is tried: closed form, the other LEDs
     matched to the same-ID luminaire imaged nearest, a refined fix on all of them; a place counts
     when that fix explains every ellipse within ``max_residual_px``. Exactly one must remain.
     """
@@ -117,9 +118,10 @@ def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
     first, second = (int(k) for k in window_order(centres, cam)[:2])
     rays = cam.rays(centres)
     found, tried, best_rejected = [], set(), np.inf
+    cap = site.window_length_cap_m
     for a in np.flatnonzero(site.ids == snap.ids[first]):
         for b in np.flatnonzero(site.ids == snap.ids[second]):
-            if a == b:
+            if a == b or (cap is not None and np.linalg.norm(site.xyz[a] - site.xyz[b]) > cap + 1e-9):
                 continue
             try:  # the closed form, refined on the two (their images' sizes check the spacing)
                 start = two_point_pose(site.xyz[[a, b]], rays[[first, second]], snap.gravity)

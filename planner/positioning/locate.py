@@ -36,16 +36,18 @@ METHODS = {"perspective": locate_perspective, "paper": locate_paper}
 
 @dataclass(frozen=True)
 class Site:
-    """The planned luminaires: names, centres (N x 3) [m], radii (N,) [m], IDs (N,)."""
+    """The planned luminaires: names, centres (N x 3) [m], radii (N,) [m], IDs (N,); for a gravity plan,
+    the longest two-LED window its receiver reads [m] (None: no cap; docs/verification.md)."""
 
     names: list[str]
     xyz: np.ndarray
     radii: np.ndarray
     ids: np.ndarray
+    window_length_cap_m: float | None = None
 
     @classmethod
     def from_plan(cls, plan: PlanFile) -> Site:
-        return cls(plan.names, plan.xyz, plan.radii, plan.ids)
+        return cls(plan.names, plan.xyz, plan.radii, plan.ids, plan.window_length_cap_m)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ differ (equal labels leave the 180 deg turn about the pair's middle: two places)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,8 +114,16 @@ def classify_pairs(position: np.ndarray, pp: PosePairs, xyz: np.ndarray, ids: np
 
 @dataclass(frozen=True)
 class PairSetCheck(WindowSetCheck):
-    """Every pair that may be a two-LED window (proved, :mod:`planner.verify.pair_proof`, or
-    bounded by the sampled windows' longest pair), checked against every pair of the site."""
+    """Every pair that may be a two-LED window up to ``length_cap_m`` long (the proved pairs,
+    :mod:`planner.verify.pair_proof`, or every site pair), checked against every pair of the site.
+
+    ``length_cap_m`` is the receiver's window rule's cap (:func:`length_cap_m`): a window longer than
+    it is no window, the receiver does not read its pair alone. So with a complete proof, ``proved``
+    holds for every pose of the envelope whose two nearest whole LEDs are at most the cap apart.
+    """
+
+    length_cap_m: float = math.inf
+    capped: int = 0  # proved pairs longer than the cap, left out of the check
 
     def summary(self, names: list[str], limit: int = 5) -> dict:
         out = super().summary(names, limit)
@@ -122,18 +131,33 @@ class PairSetCheck(WindowSetCheck):
         out["max_length_m"] = out.pop("max_side_m")
         out["max_length_from"] = out.pop("max_side_from")
         out["pairs"] = out.pop("triangles")
+        if self.complete and math.isfinite(self.length_cap_m):
+            out["window_length_cap_m"] = round(self.length_cap_m, 4)
+            out["proved_pairs_beyond_cap"] = self.capped
         return out
+
+
+def length_cap_m(sampled: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> float:
+    """The window rule's cap on a pair's length [m]: the longest sampled window plus the congruence
+    tolerance (the receiver reads lengths to that). The proof keeps pairs far longer that no pose of the
+    sample takes (docs/verification.md): beyond the cap the pair alone is not read."""
+    return float(pair_lengths(sampled, xyz).max()) + tolerance_m if len(sampled) else 0.0
 
 
 def check_pair_set(xyz: np.ndarray, ids: np.ndarray, pairs: np.ndarray | None, sampled: np.ndarray, *,
                    tolerance_m: float, install_tolerance_m: float, reason: str,
                    envelope: dict | None) -> PairSetCheck:
-    """Check ``pairs`` (the proved set) or, with none, every site pair up to the longest ``sampled`` window."""
+    """Check ``pairs`` (the proved set) or, with none, every site pair, up to the window rule's length cap
+    (:func:`length_cap_m` of the ``sampled`` windows)."""
     complete = pairs is not None
+    cap = length_cap_m(sampled, xyz, tolerance_m)
+    capped = 0
     if pairs is None:
-        bound = float(pair_lengths(sampled, xyz).max()) + tolerance_m if len(sampled) else 0.0
-        pairs = site_pairs(xyz, bound) if len(sampled) else np.empty((0, 2), np.int64)
+        pairs = site_pairs(xyz, cap) if len(sampled) else np.empty((0, 2), np.int64)
+    else:
+        within = pair_lengths(pairs, xyz) <= cap + 1e-9
+        capped, pairs = int((~within).sum()), pairs[within]
     longest = float(pair_lengths(pairs, xyz).max()) if len(pairs) else 0.0
     groups = pair_rivals(pairs, xyz, ids, tolerance_m)
     return PairSetCheck(len(pairs), groups, longest, install_tolerance_m, tolerance_m, complete,
-                        "" if complete else reason, envelope)
+                        "" if complete else reason, envelope, cap, capped)

@@ -139,3 +139,41 @@ def test_vlp_verify_judges_a_gravity_plan_on_two_led_windows(gravity_plan, tmp_p
     bad = subprocess.run(["vlp-verify", str(edited), "--json"], capture_output=True, text=True)
     assert bad.returncode == 3
     assert json.loads(bad.stdout)["window_set"]["read_alike"] > 0
+
+
+def test_the_receiver_reads_no_window_longer_than_the_plans_cap():
+    """A gravity plan's window rule caps the pair's length (docs/verification.md): two LEDs farther apart than
+    the cap are no window of the plan, so the receiver does not locate on them, rather than risk a place the
+    proof does not cover; within the cap the same image is located."""
+    from planner.errors import PositioningError
+    from planner.positioning.locate import Site, Snapshot, locate
+
+    cam = Camera.from_fov(math.radians(80.0), 4000, 3000)
+    position, rotation = np.array([1.2, 1.2, 0.3]), rotation_from_angles(0.0, 0.0, math.radians(45.0))[0]
+    seen = observe(position, rotation, XYZ, RADII, cam)
+    far = [k for k, i in enumerate(seen.index) if tuple(XYZ[i, :2]) in ((0.0, 0.0), (2.4, 2.4))]
+    assert len(far) == 2  # the two ends of a diagonal, 3.39 m apart, as the only LEDs of the image
+    ids = np.arange(1, len(XYZ) + 1)
+    snap = Snapshot(cam, [int(ids[seen.index[k]]) for k in far], [seen.ellipses[k] for k in far],
+                    gravity=rotation.T @ np.array([0.0, 0.0, -1.0]))
+    names = [f"L{k}" for k in range(len(XYZ))]
+    found = locate(Site(names, XYZ, RADII, ids, window_length_cap_m=3.5), snap)
+    assert np.linalg.norm(found.fix.position - position) < 1e-3
+    with pytest.raises(PositioningError, match="no place on the site explains the image with gravity"):
+        locate(Site(names, XYZ, RADII, ids, window_length_cap_m=1.75), snap)
+
+
+def test_a_hand_edited_window_cap_is_one_clear_error(gravity_plan, tmp_path):
+    import yaml
+
+    plan, _ = gravity_plan
+    doc = yaml.safe_load(plan.read_text())
+    assert doc["verification"]["window_set"]["window_length_cap_m"] > 0  # vlp-plan records the rule's cap
+    doc["verification"]["window_set"]["window_length_cap_m"] = "long"
+    edited = tmp_path / "plan.yaml"
+    edited.write_text(yaml.safe_dump(doc, sort_keys=False))
+    done = subprocess.run(["vlp-locate", str(edited), "--simulate", "1.0,0.9,1.2,15,40,10"], capture_output=True,
+                          text=True)
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert "window_length_cap_m: 'long' is not a length > 0 m" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1

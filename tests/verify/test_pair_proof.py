@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from conftest import grid_xy
+from conftest import ROOT, grid_xy
 from planner.camera import Camera, project_discs
+from planner.pipeline import read_layout
 from planner.verify import pair_cells as pc
 from planner.verify.pair_proof import pair_envelope, possible_window_pairs, prove_pair_set
 from planner.verify.proof import _hull_depth
@@ -172,18 +173,27 @@ def _dense_windows_inside(layout_name, cam, per_m2):
 
 @pytest.mark.slow
 def test_grid_512_two_led_windows_of_a_dense_sample_lie_in_the_proved_set_and_its_code_reads_them():
-    """Issue 19, Done-when 2 (in part): grid-512 is proved for the gravity receiver; the pair code designed
-    against the proved set leaves no proved pair reading like another (2,000 poses/m2: 256,000 poses)."""
+    """Issue 19, Done-when 2: grid-512 is proved for the gravity receiver; the pair code designed against the
+    proved pairs up to the window rule's length cap leaves none reading like another, in 6 bits; a dense
+    sample of other poses (seed 1, 2,000 poses/m2: 256,000) meets no window longer than the cap."""
     from planner.codes.pair_code import assign_pairs
     from planner.graph import build_graph
-    from planner.verify.pair_windows import pair_rivals
+    from planner.verify.pair_windows import find_pairs, length_cap_m, pair_lengths, pair_rivals
 
     xyz, proof, sampled = _dense_windows_inside("grid-512.yaml", Camera(), 2000)
     # measured 2026-12-03: 21,230 proved pairs; 1,829 distinct windows in this sample (0.5 and 0.71 m pairs)
     assert len(sampled) > 1800 and len(proof.pairs) < 25_000
-    code = assign_pairs(xyz, build_graph(xyz[:, :2]), proof.pairs, tolerance_m=0.05, proved=True)
-    assert pair_rivals(proof.pairs, xyz, code.ids, 0.05) == []
-    assert code.lower_bound_bits <= code.bits <= 8
+    lay = read_layout(ROOT / "layouts" / "grid-512.yaml", None)
+    area = working_area(lay.xy, lay.outline)
+    plan_sample = find_pairs(sample_poses(area, Camera(), 100, 0), xyz, np.array([r.radius for r in lay.luminaires]),
+                             Camera())  # the plan's own sample (seed 0, 100 poses/m2) sets the cap
+    cap = length_cap_m(np.unique(plan_sample.pairs[plan_sample.covered], axis=0), xyz, 0.05)
+    assert cap == pytest.approx(0.5 * math.sqrt(2) + 0.05, abs=1e-6)
+    assert pair_lengths(np.array(sorted(sampled)), xyz).max() <= cap
+    capped = proof.pairs[pair_lengths(proof.pairs, xyz) <= cap + 1e-9]
+    code = assign_pairs(xyz, build_graph(xyz[:, :2]), capped, tolerance_m=0.05, proved=True)
+    assert pair_rivals(capped, xyz, code.ids, 0.05) == []
+    assert code.lower_bound_bits <= code.bits <= 6
 
 
 @pytest.mark.slow
@@ -196,15 +206,23 @@ def test_grid_256_and_the_office_two_led_windows_lie_in_the_proved_set():
 
 
 @pytest.mark.slow
-def test_vlp_plan_says_a_gravity_plan_of_grid_256_is_proved(tmp_path):
+def test_vlp_plan_proves_grid_512_for_the_gravity_receiver_in_6_bits(tmp_path):
+    """Issue 19, Done-when 2, through the installed console script; the proof line names the window rule's cap."""
     import json
     import subprocess
 
-    from conftest import ROOT
-
-    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-256.yaml"), "--receiver", "gravity", "-o",
-                           str(tmp_path / "p"), "--json", "--no-report", "--no-map", "--no-firmware",
+    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "--receiver",
+                           "gravity", "-o", str(tmp_path / "p"), "--json", "--no-report", "--no-map", "--no-firmware",
                            "--error-poses-per-m2", "0"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    v = json.loads(done.stdout)["verification"]
+    summary = json.loads(done.stdout)
+    v = summary["verification"]
+    # measured 2026-12-03: 1,906 pairs up to 0.7571 m (19,324 longer ones kept by the proof), 6 bits, 93.6 %
     assert v["decodability"] == "proved" and v["window_set"]["complete"] and v["window_set"]["read_alike"] == 0
+    assert v["window_set"]["window_length_cap_m"] == pytest.approx(0.7571, abs=1e-4)
+    assert summary["bits"] <= 6 and v["coverage"] > 0.9
+    from planner.cli.common import verification_line  # the summary's lines, as vlp-plan prints them
+
+    line = verification_line(v)
+    assert "1906 pairs up to 0.7571 m long (the receiver reads no longer pair; the proof keeps" in line
+    assert "whose two nearest whole LEDs are at most 0.7571 m apart names one place: proved" in line
