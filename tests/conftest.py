@@ -68,6 +68,19 @@ def wide_plan_dir(tmp_path_factory) -> Path:
     return _shared_plan(tmp_path_factory, "grid-32.yaml", None, "--camera", "wide", stem="grid-32-wide")
 
 
+def exact_nearest(xyz, radii, cam, poses, count: int) -> np.ndarray:
+    """The ``count`` wholly seen LEDs nearest the image centre with every LED projected (no candidate
+    shortcut), sorted, for the poses that see that many: the paper's window (3), the two-LED window (2)."""
+    from planner.camera import project_discs
+
+    n = len(xyz)
+    img = project_discs(poses, np.broadcast_to(xyz, (len(poses), n, 3)), np.broadcast_to(radii, (len(poses), n)), cam)
+    d2 = np.where(img["inside"], (img["u"] - cam.cx_px) ** 2 + (img["v"] - cam.cy_px) ** 2, np.inf)
+    order = np.argsort(d2, axis=1)[:, :count]
+    ok = np.isfinite(np.take_along_axis(d2, order, axis=1)).all(axis=1)
+    return np.sort(order[ok], axis=1)
+
+
 def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: float = 0.0,
             jitter_m: float = 0.0, seed: int = 0) -> np.ndarray:
     """Plan positions of a rows x cols lattice, optionally rotated and jittered [m]."""

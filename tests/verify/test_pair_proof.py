@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from conftest import ROOT, grid_xy
-from planner.camera import Camera, project_discs
+from conftest import ROOT, exact_nearest, grid_xy
+from planner.camera import Camera
 from planner.pipeline import read_layout
 from planner.verify import pair_cells as pc
 from planner.verify.pair_proof import pair_envelope, possible_window_pairs, prove_pair_set
@@ -79,16 +79,6 @@ def test_each_slice_sure_disc_and_reach_hold_for_poses_in_it():
     assert max(sl.disc_m for sl in env.slices()) > 1.5 * env.disc_m
 
 
-def exact_pairs(xyz, radii, cam, poses):
-    """The two-LED window with every LED projected: the two seen LEDs nearest the image centre."""
-    n = len(xyz)
-    img = project_discs(poses, np.broadcast_to(xyz, (len(poses), n, 3)), np.broadcast_to(radii, (len(poses), n)), cam)
-    d2 = np.where(img["inside"], (img["u"] - cam.cx_px) ** 2 + (img["v"] - cam.cy_px) ** 2, np.inf)
-    order = np.argsort(d2, axis=1)[:, :2]
-    ok = np.isfinite(np.take_along_axis(d2, order, axis=1)).all(axis=1)
-    return np.sort(order[ok], axis=1)
-
-
 def _installed(xy, rng):
     shift = rng.normal(size=xy.shape)
     shift *= 0.03 * rng.uniform(0, 1, (len(xy), 1)) / np.linalg.norm(shift, axis=1, keepdims=True)
@@ -112,7 +102,7 @@ def test_every_exact_two_led_window_of_an_installed_site_is_in_the_proved_set(ji
     windows = set()
     poses = sample_poses(area, cam, 2500.0, 3)
     for part in range(0, len(poses), 4000):
-        windows |= {tuple(p) for p in exact_pairs(installed, radii, cam, poses.subset(slice(part, part + 4000))).tolist()}
+        windows |= {tuple(p) for p in exact_nearest(installed, radii, cam, poses.subset(slice(part, part + 4000)), 2).tolist()}
     assert len(windows) > 100
     assert not windows - proved, sorted(windows - proved)[:3]
 
@@ -137,7 +127,7 @@ def test_random_installed_sites_have_every_exact_window_in_the_proved_set(seed, 
     poses = sample_poses(area, cam, 3000.0, seed)
     windows = set()
     for part in range(0, len(poses), 4000):
-        windows |= {tuple(p) for p in exact_pairs(installed, radii, cam, poses.subset(slice(part, part + 4000))).tolist()}
+        windows |= {tuple(p) for p in exact_nearest(installed, radii, cam, poses.subset(slice(part, part + 4000)), 2).tolist()}
     assert len(windows) > 20
     assert not windows - proved, sorted(windows - proved)[:3]
 

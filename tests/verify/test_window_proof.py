@@ -6,24 +6,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_xy, hex_xy, poisson_xy
-from planner.camera import Camera, project_discs
+from conftest import exact_nearest, grid_xy, hex_xy, poisson_xy
+from planner.camera import Camera
 from planner.verify import proof as wp
 from planner.verify.envelope import Envelope, envelope
 from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area
 
 ENV = Envelope(ceiling_m=2.5, near_m=1.0, far_m=2.0, tilt_rad=math.radians(40), inscribed_rad=math.radians(19.44),
                   corner_rad=math.radians(30.46), disc_rad=math.radians(5.74), install_m=0.03)
-
-
-def exact_windows(xyz, radii, cam, poses):
-    """The paper's rule with every LED projected (no candidate shortcut): sorted triples, -1 when none."""
-    n = len(xyz)
-    img = project_discs(poses, np.broadcast_to(xyz, (len(poses), n, 3)), np.broadcast_to(radii, (len(poses), n)), cam)
-    d2 = np.where(img["inside"], (img["u"] - cam.cx_px) ** 2 + (img["v"] - cam.cy_px) ** 2, np.inf)
-    order = np.argsort(d2, axis=1)[:, :3]
-    ok = np.isfinite(np.take_along_axis(d2, order, axis=1)).all(axis=1)
-    return np.sort(order[ok], axis=1)
 
 
 def test_spindle_membership_matches_the_farthest_centre_found_by_brute_force():
@@ -130,7 +120,7 @@ def test_every_exact_window_of_the_installed_site_is_in_the_proved_set(xy, insta
     assert proof.complete, proof.reason
     proved = {tuple(t) for t in proof.triangles.tolist()}
     poses = sample_poses(working_area(xy, None), cam, 1500.0, seed)
-    windows = np.unique(exact_windows(installed, radii, cam, poses), axis=0)
+    windows = np.unique(exact_nearest(installed, radii, cam, poses, 3), axis=0)
     decoded = windows[flatness(installed[windows]) >= MIN_FLATNESS]
     assert len(decoded)
     missing = [t for t in decoded.tolist() if tuple(t) not in proved]
@@ -157,7 +147,7 @@ def test_on_larger_sites_where_the_tests_exclude_most_triples_no_exact_window_is
         for s in range(3):
             poses = sample_poses(working_area(xy, None), cam, 700.0, 100 + s)
             for part in range(0, len(poses), 4000):
-                w = exact_windows(installed, radii, cam, poses.subset(slice(part, part + 4000)))
+                w = exact_nearest(installed, radii, cam, poses.subset(slice(part, part + 4000)), 3)
                 windows |= {tuple(t) for t in w[flatness(installed[w]) >= MIN_FLATNESS].tolist()}
         assert len(windows) > 300
         assert not windows - proved, sorted(windows - proved)[:3]
