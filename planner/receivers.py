@@ -27,9 +27,7 @@ from planner.verify.pair_windows import (
     check_pair_set,
     classify_pairs,
     find_pairs,
-    length_cap_m,
-    pair_lengths,
-    site_pairs,
+    window_pairs,
 )
 from planner.verify.verify import Verification
 from planner.verify.windows import PoseSample, PoseWindows
@@ -92,8 +90,7 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
 
     made: dict[str, tuple[Assignment, Verification]] = {}
     if scheme in ("window", "auto"):
-        cap = length_cap_m(sampled, xyz, tolerance_m)  # what the check checks: pairs up to the window rule's cap
-        design = site_pairs(xyz, cap) if proof.pairs is None else proof.pairs[pair_lengths(proof.pairs, xyz) <= cap + 1e-9]
+        design, _, _ = window_pairs(xyz, proof.pairs, sampled, tolerance_m)  # what the check checks
         made["window"] = verified(assign_pairs(xyz, graph, design, tolerance_m=tolerance_m, seed=seed,
                                                proved=proof.complete, time_budget=time_budget))
     if scheme in ("paper", "auto"):

@@ -144,19 +144,25 @@ def length_cap_m(sampled: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> fl
     return float(pair_lengths(sampled, xyz).max()) + tolerance_m if len(sampled) else 0.0
 
 
+def window_pairs(xyz: np.ndarray, proved: np.ndarray | None, sampled: np.ndarray, tolerance_m: float
+                 ) -> tuple[np.ndarray, float, int]:
+    """The pairs that may be windows under the rule's length cap (:func:`length_cap_m` of the ``sampled``
+    windows): the ``proved`` ones within it, or with no proof every site pair within it; with the cap [m]
+    and how many proved pairs lie beyond it. The IDs are designed against these and checked on them."""
+    cap = length_cap_m(sampled, xyz, tolerance_m)
+    if proved is None:
+        return (site_pairs(xyz, cap) if len(sampled) else np.empty((0, 2), np.int64)), cap, 0
+    within = pair_lengths(proved, xyz) <= cap + 1e-9
+    return proved[within], cap, int((~within).sum())
+
+
 def check_pair_set(xyz: np.ndarray, ids: np.ndarray, pairs: np.ndarray | None, sampled: np.ndarray, *,
                    tolerance_m: float, install_tolerance_m: float, reason: str,
                    envelope: dict | None) -> PairSetCheck:
     """Check ``pairs`` (the proved set) or, with none, every site pair, up to the window rule's length cap
-    (:func:`length_cap_m` of the ``sampled`` windows)."""
+    (:func:`window_pairs`)."""
     complete = pairs is not None
-    cap = length_cap_m(sampled, xyz, tolerance_m)
-    capped = 0
-    if pairs is None:
-        pairs = site_pairs(xyz, cap) if len(sampled) else np.empty((0, 2), np.int64)
-    else:
-        within = pair_lengths(pairs, xyz) <= cap + 1e-9
-        capped, pairs = int((~within).sum()), pairs[within]
+    pairs, cap, capped = window_pairs(xyz, pairs, sampled, tolerance_m)
     longest = float(pair_lengths(pairs, xyz).max()) if len(pairs) else 0.0
     groups = pair_rivals(pairs, xyz, ids, tolerance_m)
     return PairSetCheck(len(pairs), groups, longest, install_tolerance_m, tolerance_m, complete,
