@@ -34,7 +34,7 @@ from planner.layout.dxf_names import PRESETS, selector
 from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, scan
 from planner.layout.dxf_units import HEIGHT_RANGE_M, Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
-from planner.layout.outline import floor_outline
+from planner.layout.outline import floor_outline, off_floor
 
 __all__ = ["read_dxf", "scan_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
 
@@ -293,13 +293,13 @@ def _choose_group(found: Scan, members: list[np.ndarray], expected: int | None, 
 def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None, mount_height_m: float | None,
                 expected: int | None, where: str, outline=None) -> tuple[list[Luminaire], list[str]]:
     """Merge parts at one point, keep the group --leds names, leave out the few symbols drawn off the floor
-    (:func:`_off_floor`), convert to metres, sort by (y, x) and name them."""
+    (:func:`planner.layout.outline.off_floor`), convert to metres, sort by (y, x) and name them."""
     if not found.parts:
         return [], []
     xyz = parts.xyz * scale
     merge = parts.merge_radius_m(scale, radius_m)
     members_of, notes = _choose_group(found, _groups(_clusters(xyz[:, :2], merge)), expected, where)
-    members_of, off_notes = _off_floor(members_of, np.array([xyz[m, :2].mean(axis=0) for m in members_of]), outline,
+    members_of, off_notes = off_floor(members_of, np.array([xyz[m, :2].mean(axis=0) for m in members_of]), outline,
                                        expected)
     notes += off_notes
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
@@ -332,38 +332,6 @@ def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None
         notes.append(f"{len(low_z)} luminaire(s) have a Z that is no plausible mounting height (e.g. {low_z[0]:.3g} m, "
                      f"outside {HEIGHT_RANGE_M[0]:g}-{MAX_HEIGHT_M:g} m); used {height:g} m ({given})")
     return luminaires, notes
-
-
-OFF_FLOOR_M = 0.5
-"""A luminaire symbol farther than this outside the floor outline is drawn off the floor [m]."""
-
-OFF_FLOOR_SHARE = 0.05
-"""Symbols off the floor are left out when they are this share of all or fewer (at least 2 may be)."""
-
-
-def _off_floor(members: list[np.ndarray], xy: np.ndarray, outline, expected: int | None
-               ) -> tuple[list[np.ndarray], list[str]]:
-    """Leave out the few luminaire symbols drawn well outside the floor outline: a legend's or a title
-    block's symbols, not luminaires of the room. Many of them mean the outline is incomplete: all are
-    kept and a note says so; so are they when ``--leds N`` counts them."""
-    if outline is None or not members:
-        return members, []
-    import shapely
-
-    off = shapely.distance(shapely.Polygon(outline), shapely.points(xy)) > OFF_FLOOR_M
-    if not off.any():
-        return members, []
-    where = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in xy[off][:4]) + (" ..." if off.sum() > 4 else "")
-    if expected == len(members):
-        return members, [f"{int(off.sum())} luminaire(s) lie more than {OFF_FLOOR_M:g} m outside the room outline, at "
-                      f"{where} m: kept, as --leds {expected} counts them"]
-    if off.sum() > max(2, OFF_FLOOR_SHARE * len(members)):
-        return members, [f"{int(off.sum())} of {len(members)} luminaires lie more than {OFF_FLOOR_M:g} m outside the room "
-                      f"outline, e.g. at {where} m: kept (so many suggest the outline misses rooms; --room chooses)"]
-    kept = [m for m, o in zip(members, off) if not o]
-    return kept, [f"left out {int(off.sum())} luminaire symbol(s) drawn more than {OFF_FLOOR_M:g} m outside the room "
-                  f"outline, at {where} m (a legend or title block?); to plan them, draw the room around them "
-                  f"or pass --leds {len(members)}"]
 
 
 def _outline(found: Scan, scale: float, room: str | None, where: str

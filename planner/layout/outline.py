@@ -6,7 +6,8 @@ rooms a wall apart (up to ``2 * WALL_GAP_M``) are joined by closing (grow, unite
 holes such as courtyards are dropped, and of separate buildings the largest is kept (a
 note names the others). When one polygon already holds all the others it is the floor, as
 drawn. A chosen room (``--room``, by layer or by the name written inside it) replaces the
-floor by the union of the rooms chosen.
+floor by the union of the rooms chosen. Luminaire symbols drawn well off the floor (a legend's,
+a title block's) are left out when they are few (:func:`off_floor`).
 """
 
 from __future__ import annotations
@@ -59,3 +60,35 @@ def floor_outline(polygons: Sequence[Polygon], what: str = "closed polylines on 
         notes.append(f"room outline: {len(parts) - 1} separate part(s) of {sum(g.area for g in parts[1:]):.1f} m2 "
                      "left out (not within 0.6 m of the largest); choose one with --room")
     return tuple(coords), notes
+
+
+OFF_FLOOR_M = 0.5
+"""A luminaire symbol farther than this outside the floor outline is drawn off the floor [m]."""
+
+OFF_FLOOR_SHARE = 0.05
+"""Symbols off the floor are left out when they are this share of all or fewer (at least 2 may be)."""
+
+
+def off_floor(members: list[np.ndarray], xy: np.ndarray, outline, expected: int | None
+               ) -> tuple[list[np.ndarray], list[str]]:
+    """Leave out the few luminaire symbols drawn well outside the floor outline: a legend's or a title
+    block's symbols, not luminaires of the room. Many of them mean the outline is incomplete: all are
+    kept and a note says so; so are they when ``--leds N`` counts them."""
+    if outline is None or not members:
+        return members, []
+    import shapely
+
+    off = shapely.distance(shapely.Polygon(outline), shapely.points(xy)) > OFF_FLOOR_M
+    if not off.any():
+        return members, []
+    where = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in xy[off][:4]) + (" ..." if off.sum() > 4 else "")
+    if expected == len(members):
+        return members, [f"{int(off.sum())} luminaire(s) lie more than {OFF_FLOOR_M:g} m outside the room outline, at "
+                      f"{where} m: kept, as --leds {expected} counts them"]
+    if off.sum() > max(2, OFF_FLOOR_SHARE * len(members)):
+        return members, [f"{int(off.sum())} of {len(members)} luminaires lie more than {OFF_FLOOR_M:g} m outside the room "
+                      f"outline, e.g. at {where} m: kept (so many suggest the outline misses rooms; --room chooses)"]
+    kept = [m for m, o in zip(members, off) if not o]
+    return kept, [f"left out {int(off.sum())} luminaire symbol(s) drawn more than {OFF_FLOOR_M:g} m outside the room "
+                  f"outline, at {where} m (a legend or title block?); to plan them, draw the room around them "
+                  f"or pass --leds {len(members)}"]
