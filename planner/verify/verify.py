@@ -182,8 +182,18 @@ class Verification:
             "windows": len(self.windows),
             "conflicting_keys": len(self.conflicts),
             "first_conflicts": [[[names[i] for i in triple] for triple in group] for group in self.conflicts[:limit]],
-            "window_set": self.window_set.summary(names, limit) if self.window_set else None,
+            "window_set": self._window_set_summary(names, limit),
         }
+
+    def _window_set_summary(self, names: list[str], limit: int) -> dict | None:
+        """The window-set check, with how tight the set is: its size beside the distinct windows of this sample."""
+        if self.window_set is None:
+            return None
+        out = self.window_set.summary(names, limit)
+        if "triangles" not in out or not len(self.windows):
+            return out
+        tight = {"sampled_windows": len(self.windows), "over_sampled": round(out["triangles"] / len(self.windows), 2)}
+        return {k: v for key, value in out.items() for k, v in ((key, value), *(tight.items() if key == "triangles" else ()))}
 
 
 @dataclass(frozen=True)
