@@ -29,7 +29,9 @@ every window. Installed luminaires lie up to ``d`` from the drawing: an LED coun
 against a triple only when it is deeper than ``2 d`` inside the region, and the
 spindles are taken over every centre within ``R + d`` of both (drawn) ends. Triples
 whose installed shape is certainly flatter than the receiver accepts are dropped
-(:func:`planner.verify.window_set.may_be_decoded`).
+(:func:`planner.verify.window_set.may_be_decoded`). The ``2 d`` margin is not slack: an
+LED on an edge, moved outwards, can be nearer yet cut by the image's border, and the
+hull is all this proof knows of the view (docs/verification.md measures such a window).
 Pairs are tested first (an LED may be the unknown third member, so two are needed).
 """
 
