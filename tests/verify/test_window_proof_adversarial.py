@@ -72,14 +72,16 @@ def _exact_windows(installed_xy: np.ndarray, poses: Poses) -> set:
     return found
 
 
-def _check(xy: np.ndarray, poses_per_push: int, seed: int) -> int:
-    proved, total = _proved(xy, D), 0
+def _check(xy: np.ndarray, poses_per_push: int, seed: int) -> tuple[int, int]:
+    """Windows found over every push, and those of them outside the set proved for the exact drawing
+    (the adversarial installations do find such windows: a set that shrank to it would fail here)."""
+    proved, exact, total, beyond_exact = _proved(xy, D), _proved(xy, 0.0), 0, 0
     for k, (name, push) in enumerate(_perpendicular_pushes(xy).items()):
         assert np.allclose(np.linalg.norm(push, axis=1)[np.linalg.norm(push, axis=1) > 0], D)
         windows = _exact_windows(xy + push, _boundary_poses(xy, poses_per_push, seed + k))
         assert not windows - proved, (name, sorted(windows - proved)[:3])
-        total += len(windows)
-    return total
+        total, beyond_exact = total + len(windows), beyond_exact + len(windows - exact)
+    return total, beyond_exact
 
 
 def test_a_window_the_install_tolerance_adds_is_in_the_proved_set():
@@ -107,11 +109,13 @@ def test_a_window_the_install_tolerance_adds_is_in_the_proved_set():
 
 
 def test_lattice_pushed_across_its_lines_and_posed_at_the_envelope_boundary():
-    assert _check(grid_xy(6, 8, 0.5, 0.5), 12_000, 1) > 300
+    total, beyond_exact = _check(grid_xy(6, 8, 0.5, 0.5), 12_000, 1)
+    assert total > 300 and beyond_exact >= 1
 
 
 def test_hexagonal_site_pushed_across_its_lines_and_posed_at_the_envelope_boundary():
-    assert _check(hex_xy(6, 7, 0.6), 12_000, 2) > 300
+    total, beyond_exact = _check(hex_xy(6, 7, 0.6), 12_000, 1)
+    assert total > 300 and beyond_exact >= 1
 
 
 @pytest.mark.slow
@@ -119,4 +123,4 @@ def test_hexagonal_site_pushed_across_its_lines_and_posed_at_the_envelope_bounda
                                      ("hexagonal 9 x 9, 0.7 m", hex_xy(9, 9, 0.7)),
                                      ("jittered 0.6 m, 12 cm", jittered_xy(3)[:160])])
 def test_dense_adversarial_sample_finds_no_window_outside_the_proved_set(name, xy):
-    assert _check(xy, 80_000, 7) > 1000, name
+    assert _check(xy, 80_000, 7)[0] > 1000, name
