@@ -52,7 +52,7 @@ def _boundary_poses(xy: np.ndarray, count: int, seed: int) -> Poses:
     lo, hi = xy.min(axis=0) - 0.5, xy.max(axis=0) + 0.5
     pos = lo + rng.random((count, 2)) * (hi - lo)
     step = np.sort(np.linalg.norm(xy[:, None] - xy[None], axis=2), axis=1)[:, 1].min()
-    ties = rng.random(count) < 0.25  # cell centres and edge midpoints of the lattice, a millimetre off
+    ties = rng.random(count) < 0.25  # half-step points (lattice points, edge midpoints, cell centres), 1 mm off
     snapped = xy.min(axis=0) + np.round((pos - xy.min(axis=0)) / (0.5 * step)) * 0.5 * step
     pos = np.where(ties[:, None], snapped + rng.normal(0, 1e-3, pos.shape), pos)
     u = rng.random((count, 3))
