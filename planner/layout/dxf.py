@@ -34,7 +34,7 @@ from planner.layout.dxf_names import PRESETS, selector
 from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, scan
 from planner.layout.dxf_units import HEIGHT_RANGE_M, Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
-from planner.layout.outline import floor_outline, off_floor
+from planner.layout.outline import floor_outline, off_floor, own_extent
 
 __all__ = ["read_dxf", "scan_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
 
@@ -227,6 +227,9 @@ def read_dxf(
     scale = UNIT_TO_M[unit]
     outline, outline_notes = _outline(found, scale, room, where)
     luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where, outline)
+    if room is None:  # a room the user chose stays, whatever it holds
+        outline, extent_notes = own_extent(outline, np.array([(lum.x, lum.y) for lum in luminaires]).reshape(-1, 2))
+        outline_notes += extent_notes
     return Layout(tuple(luminaires), outline, where, unit, reason,
                   tuple(notes + unit_notes + lum_notes + outline_notes))
 
@@ -339,7 +342,7 @@ def _outline(found: Scan, scale: float, room: str | None, where: str
     """The floor outline [m], or the rooms ``--room`` names (by layer, or by a text inside)."""
     rooms = [[(x * scale, y * scale) for x, y in o.points] for o in found.outlines]
     if room is None:
-        return floor_outline(rooms)
+        return floor_outline(rooms, lines=[[(x * scale, y * scale) for x, y in s] for s in found.segments])
     pattern = room.upper()
     chosen = []
     for candidate, metres in zip(found.outlines, rooms):
