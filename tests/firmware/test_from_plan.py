@@ -177,3 +177,35 @@ def test_a_folder_with_an_as_built_journal_is_not_replaced(site, tmp_path, capsy
     assert console_main(["--from-plan", str(edited)]) == 2  # in place: the journal's folder
     assert "holds as-built.json" in capsys.readouterr().err
     assert (edited.parent / "as-built.json").read_text() == "{}"
+
+
+@pytest.mark.parametrize(("line", "distance"), [("manchester", 1), ("manchester", 3), ("4b6b", 2)])
+def test_frames_made_from_ids_send_those_ids_and_a_swap_is_named(line, distance):
+    """In process, over every ID of a 4-bit code: with and without check bits, both line codes."""
+    from conftest import minimal_plan
+    from planner.codes.check_bits import check_code
+    from planner.firmware.rebuild import Codec, derived_frame, frame_mismatches
+    from planner.frame import line_code
+
+    check = check_code(16, 4, distance)
+    code = line_code(line)
+    c = Codec(code, check, check.word_bits, 5000.0)
+    sections = {"code": {"bits": 4, "max_id": 16, "naive_bits": 5, "lower_bound_bits": 3, "efficiency": 0.2,
+                         "check_distance": distance, "word_bits": check.word_bits},
+                "modulation": {"line_code": line, "preamble": code.preamble, "chip_rate_hz": 5000.0,
+                               "frame_chips": 8, "frame_period_s": 0.01, "frames_in_smallest_image": 2.0,
+                               "smallest_image_rows": 200.0, "row_time_s": 2e-5}}
+    rows = [{"name": f"L{k}", "x": float(k), "id": k} for k in range(1, 17)]
+    bare = minimal_plan(rows, **sections)
+    framed = [{**r, "frame": derived_frame(c, e), **({"codeword": c.word(e.id)} if distance > 1 else {})}
+              for r, e in zip(rows, bare.luminaires)]
+    assert [c.id_of(f["frame"]["chips"]) for f in framed] == list(range(1, 17))
+    assert frame_mismatches(minimal_plan(framed, **sections), "plan") == []
+    framed[0]["frame"], framed[1]["frame"] = framed[1]["frame"], framed[0]["frame"]  # L1 and L2 swapped
+    named = frame_mismatches(minimal_plan(framed, **sections), "plan")
+    assert [(m.name, m.id, m.sends) for m in named] == [("L1", 1, 2), ("L2", 2, 1)]
+    if distance > 1:
+        framed[0]["frame"], framed[1]["frame"] = framed[1]["frame"], framed[0]["frame"]
+        framed[2]["codeword"] = c.word(4)
+        named = frame_mismatches(minimal_plan(framed, **sections), "plan")
+        assert [m.text() for m in named] == [f"L3 (id 3: its codeword {c.word(4)} is not the one of ID 3)"]
