@@ -83,7 +83,7 @@ def _survey_dxf(report: dict, path: Path, options) -> None:
         selection=found.selector.label, layers=_named(found.layers_seen), blocks=_named(found.blocks_seen),
         taken=_rows(found.taken), rejected=_rows(found.rejected), recovered=notes,
         outlines=[{"layer": o.layer, "handle": o.handle, "corners": len(o.points)} for o in found.outlines],
-        coordinates="drawing units",
+        wall_lines=len(found.segments), coordinates="drawing units",
         points={"taken": [list(p.xyz[:2]) for p in found.parts], "rejected": [[x, y] for x, y, _ in found.rejected_at],
                 "outlines": [[list(p) for p in o.points] for o in found.outlines]},
     )

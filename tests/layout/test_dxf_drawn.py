@@ -260,3 +260,14 @@ def test_vlp_plan_samples_poses_over_the_floor_the_walls_enclose(tmp_path, capsy
     assert area_m2(np.array(plan["outline"])) == pytest.approx(138.24, rel=0.03)
     xy = np.array([(e["x"], e["y"]) for e in plan["luminaires"]])
     assert_allclose(xy, centres, atol=1e-6)
+
+
+def test_vlp_inspect_counts_the_wall_lines(tmp_path, capsys):
+    from planner.cli.inspect import main
+
+    doc, _ = house()
+    path = _save(tmp_path, doc)
+    assert main([str(path)]) == 0
+    assert "outlines 1 closed polyline(s) and 98 open line(s) on wall/room layers: A-WALL" in capsys.readouterr().out
+    assert main([str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["wall_lines"] == 98
