@@ -262,11 +262,12 @@ def _check_numbers(found: Scan, where: str) -> None:
                              f"(finite, within {limit:g} units, radius > 0); fix or delete that entity")
         if part.size is not None and not 0 < part.size < limit:
             part.size = None  # a symbol of no or absurd size: the radius falls back
-    for outline in found.outlines:
-        pts = np.asarray(outline.points, dtype=float)
-        if not np.isfinite(pts).all() or np.abs(pts).max() > limit:
-            raise InputError(f"{where}: a closed polyline on a wall layer has a corner that is not a plausible "
-                             f"drawing value (finite, within {limit:g} units); fix or delete it")
+    for kind, shapes in (("a closed polyline", [o.points for o in found.outlines]), ("a line", found.segments)):
+        for points in shapes:
+            pts = np.asarray(points, dtype=float)
+            if not np.isfinite(pts).all() or np.abs(pts).max() > limit:
+                raise InputError(f"{where}: {kind} on a wall layer has a corner that is not a plausible drawing value "
+                                 f"(finite, within {limit:g} units); fix or delete it")
 
 
 def _choose_group(found: Scan, members: list[np.ndarray], expected: int | None, where: str

@@ -80,10 +80,16 @@ def _floor_from_lines(polygons: Sequence[Polygon], lines: Sequence[Polygon], wha
     from shapely.geometry import Polygon as ShapelyPolygon
     from shapely.geometry.polygon import orient
 
-    shapes = [ShapelyPolygon(p).buffer(0) for p in polygons] + [LineString(p) for p in lines]
+    # closed polylines count by their edges, as the lines do: rooms drawn closed inside walls drawn open leave
+    # the floor between them enclosed, not covered
+    shapes = [ShapelyPolygon(p).buffer(0).boundary for p in polygons] + [LineString(p) for p in lines]
+    shapes = [g for g in shapes if not g.is_empty and (g.area > 0 or g.length > 0)]  # no zero-length lines
     for gap_m in DOOR_GAPS_M:
         grown = shapely.unary_union([g.buffer(gap_m, join_style="mitre", cap_style="square") for g in shapes])
-        parts = sorted(getattr(grown, "geoms", [grown]), key=lambda g: -ShapelyPolygon(g.exterior).area)
+        parts = sorted((g for g in getattr(grown, "geoms", [grown]) if isinstance(g, ShapelyPolygon) and not g.is_empty),
+                       key=lambda g: -ShapelyPolygon(g.exterior).area)
+        if not parts:
+            break
         filled = ShapelyPolygon(parts[0].exterior)
         if filled.area - parts[0].area < 0.5 * filled.area:
             continue  # the walls are open wider than 2 d: they enclose no floor yet
