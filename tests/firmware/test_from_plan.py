@@ -136,7 +136,11 @@ def test_an_edit_whose_ids_read_alike_is_named_and_refused(site, tmp_path):
     plan = load_plan(out / "plan.yaml")
     assert plan.ids[0] == new_id
     assert any("FAILED (written with --allow-unverified)" in n for n in plan.source["notes"])
-    assert _run("vlp-verify", out / "plan.yaml").returncode == 3  # the frames agree, the IDs still read alike
+    again = _run("vlp-verify", out / "plan.yaml", "--json")  # the frames agree, the IDs still read alike
+    assert again.returncode == 3
+    doc = json.loads(again.stdout)
+    assert doc["frame_mismatches"] == [] and not doc["passed"]
+    assert doc["verdict"].startswith("FAILED: the IDs do not name one place")  # never "usable" beside exit 3
 
 
 def test_a_frame_edited_by_hand_is_named_too(site, tmp_path):
