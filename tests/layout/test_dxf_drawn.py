@@ -257,7 +257,9 @@ def test_vlp_plan_samples_poses_over_the_floor_the_walls_enclose(tmp_path, capsy
     assert code in (0, 3) and summary["luminaires"] == 12
     assert any("floor enclosed by" in note for note in summary["notes"])
     plan = yaml.safe_load((out / "plan.yaml").read_text())
-    assert area_m2(np.array(plan["outline"])) == pytest.approx(138.24, rel=0.03)
+    floor_m2 = area_m2(np.array(plan["outline"]))
+    assert floor_m2 == pytest.approx(138.24, rel=0.03)
+    assert summary["verification"]["poses"] == round(5 * floor_m2)  # sampled over the floor, not the lights' hull
     xy = np.array([(e["x"], e["y"]) for e in plan["luminaires"]])
     assert_allclose(xy, centres, atol=1e-6)
 
