@@ -226,7 +226,8 @@ def read_dxf(
     unit, reason, unit_notes = choose_unit(lambda s: parts.figures(s, radius_m, biggest), insunits, units, where)
     scale = UNIT_TO_M[unit]
     outline, outline_notes = _outline(found, scale, room, where)
-    luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where, outline)
+    luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where, outline,
+                                        room is not None)
     if room is None:  # a room the user chose stays, whatever it holds
         outline, extent_notes = own_extent(outline, np.array([(lum.x, lum.y) for lum in luminaires]).reshape(-1, 2))
         outline_notes += extent_notes
@@ -295,7 +296,8 @@ def _choose_group(found: Scan, members: list[np.ndarray], expected: int | None, 
 
 
 def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None, mount_height_m: float | None,
-                expected: int | None, where: str, outline=None) -> tuple[list[Luminaire], list[str]]:
+                expected: int | None, where: str, outline=None, chosen: bool = False
+                ) -> tuple[list[Luminaire], list[str]]:
     """Merge parts at one point, keep the group --leds names, leave out the few symbols drawn off the floor
     (:func:`planner.layout.outline.off_floor`), convert to metres, sort by (y, x) and name them."""
     if not found.parts:
@@ -304,7 +306,7 @@ def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None
     merge = parts.merge_radius_m(scale, radius_m)
     members_of, notes = _choose_group(found, _groups(_clusters(xyz[:, :2], merge)), expected, where)
     members_of, off_notes = off_floor(members_of, np.array([xyz[m, :2].mean(axis=0) for m in members_of]), outline,
-                                       expected)
+                                       expected, chosen)
     notes += off_notes
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
     rows, no_z, low_z = [], 0, []

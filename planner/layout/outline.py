@@ -117,11 +117,12 @@ OFF_FLOOR_SHARE = 0.05
 """Symbols off the floor are left out when they are this share of all or fewer (at least 2 may be)."""
 
 
-def off_floor(members: list[np.ndarray], xy: np.ndarray, outline, expected: int | None
+def off_floor(members: list[np.ndarray], xy: np.ndarray, outline, expected: int | None, chosen: bool = False
                ) -> tuple[list[np.ndarray], list[str]]:
     """Leave out the few luminaire symbols drawn well outside the floor outline: a legend's or a title
     block's symbols, not luminaires of the room. Many of them mean the outline is incomplete: all are
-    kept and a note says so; so are they when ``--leds N`` counts them."""
+    kept and a note says so; so are they when ``--leds N`` counts them. An outline holding too few of them
+    to be their floor (and not a room ``chosen`` with ``--room``) is left to :func:`own_extent`."""
     if outline is None or not members:
         return members, []
     import shapely
@@ -133,6 +134,8 @@ def off_floor(members: list[np.ndarray], xy: np.ndarray, outline, expected: int 
     if expected == len(members):
         return members, [f"{int(off.sum())} luminaire(s) lie more than {OFF_FLOOR_M:g} m outside the room outline, at "
                       f"{where} m: kept, as --leds {expected} counts them"]
+    if off.mean() > 1 - FLOOR_SHARE and not chosen:
+        return members, []  # no floor of these luminaires: :func:`own_extent` drops it and says so
     if off.sum() > max(2, OFF_FLOOR_SHARE * len(members)):
         return members, [f"{int(off.sum())} of {len(members)} luminaires lie more than {OFF_FLOOR_M:g} m outside the room "
                       f"outline, e.g. at {where} m: kept (so many suggest the outline misses rooms; --room chooses)"]
