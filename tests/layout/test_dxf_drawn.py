@@ -273,3 +273,11 @@ def test_vlp_inspect_counts_the_wall_lines(tmp_path, capsys):
     assert "outlines 1 closed polyline(s) and 98 open line(s) on wall/room layers: A-WALL" in capsys.readouterr().out
     assert main([str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["wall_lines"] == 98
+
+
+def test_a_room_chosen_with_room_stays_whatever_it_holds(tmp_path):
+    path = factory.save(factory.multi_room_floor(), tmp_path / "floor.dxf")
+    layout = read_dxf(path, room="OFFICE 2")  # 8 of the 24 downlights are in it
+    assert area_m2(np.array(layout.outline)) == pytest.approx(70.0)
+    assert any("luminaires lie more than 0.5 m outside the room outline" in n for n in layout.notes)
+    assert not any("own extent" in n for n in layout.notes)
