@@ -19,7 +19,8 @@ from functools import lru_cache
 
 from planner.errors import UsageError
 
-__all__ = ["ANNOTATION_MARKS", "BUILDING_WORDS", "LUMINAIRE", "NEUTRAL", "PRESETS", "Selector", "name_class", "selector", "words"]
+__all__ = ["ANNOTATION_MARKS", "BUILDING_WORDS", "LUMINAIRE", "NEUTRAL", "PRESETS", "Selector", "layer_class", "name_class",
+           "selector", "words"]
 
 LUMINAIRE = "luminaire"
 NEUTRAL = ""
@@ -137,6 +138,16 @@ def name_class(name: str) -> tuple[str, str]:
     return LUMINAIRE, word
 
 
+def layer_class(layer: str) -> tuple[str, str]:
+    """What a layer name says (:func:`name_class`), where ``DIM`` in a name that says nothing else marks
+    annotation: on a layer it names dimensions (``A-DIM``); in a block name, or beside a light word
+    (``E-LITE-DIM``), it may mean dimmable."""
+    what, word = name_class(layer)
+    if what == NEUTRAL and "DIM" in words(layer):
+        return "annotation", "DIM"
+    return what, word
+
+
 @dataclass(frozen=True)
 class Preset:
     """Which layer and block names hold luminaires: names whose class is luminaire and whose words start
@@ -194,7 +205,7 @@ class Selector:
         what, word = name_class(block)
         if what not in (LUMINAIRE, NEUTRAL):
             return "reject", f"block name says {what} ({word})"
-        layer_what, layer_word = name_class(layer)
+        layer_what, layer_word = layer_class(layer)
         if not self.patterns and layer_what == "annotation":
             return "reject", f"layer says annotation ({layer_word})"  # a tag or arrow, however it is named
         if what == LUMINAIRE and not self.patterns and any(p.blocks for p in self.presets):
@@ -212,7 +223,7 @@ class Selector:
         """``("take", why)``, ``("reject", why)`` or ``("skip", "")`` for a CIRCLE or POINT on ``layer``."""
         if self._layer_is_light(layer):
             return "take", "layer matches --layer" if self.patterns else f"layer says luminaire ({name_class(layer)[1]})"
-        what, word = name_class(layer)
+        what, word = layer_class(layer)
         if not self.patterns and what not in (LUMINAIRE, NEUTRAL):
             return "reject", f"layer says {what} ({word})"
         return "skip", ""

@@ -122,7 +122,7 @@ def test_lights_are_read_the_arrow_is_not_and_the_outline_covers_the_floor(tmp_p
     assert any("floor enclosed by" in note and "wall line(s)" in note for note in layout.notes)
 
 
-@pytest.mark.parametrize("layer", ["E-ANNO-TAG", "0", "E-LIGHTING", "G-ANNO-SYMB", "E-LITE-TEXT"])
+@pytest.mark.parametrize("layer", ["E-ANNO-TAG", "0", "E-LIGHTING", "G-ANNO-SYMB", "E-LITE-TEXT", "A-DIM"])
 def test_the_arrow_is_no_light_on_any_layer(tmp_path, layer):
     """The tag word in the name, the annotation layer or the drawing (a leader and an arrowhead) says so."""
     doc, centres = house(arrow_layer=layer)
@@ -131,14 +131,21 @@ def test_the_arrow_is_no_light_on_any_layer(tmp_path, layer):
 
 
 def test_a_light_symbol_on_an_annotation_layer_is_no_light(tmp_path):
-    """A legend's downlight symbol drawn on the annotation layer: the layer says what it is."""
+    """A legend's downlight symbol drawn on the annotation layer, or on the dimensions layer: the layer says
+    what it is. On a lighting layer for dimmable lights it is a light."""
     doc, centres = house(walls=False)
-    doc.layers.add("G-ANNO-SYMB")
-    doc.modelspace().add_blockref("CEILING LIGHT", (20_000, 3000), dxfattribs={"layer": "G-ANNO-SYMB"})
+    for layer in ("G-ANNO-SYMB", "A-DIM", "E-LITE-DIM"):
+        doc.layers.add(layer)
+    msp = doc.modelspace()
+    msp.add_blockref("CEILING LIGHT", (20_000, 3000), dxfattribs={"layer": "G-ANNO-SYMB"})
+    msp.add_circle((20_000, 6000), 100, dxfattribs={"layer": "A-DIM"})
+    msp.add_blockref("CEILING LIGHT", (5400, 8000 + 3200), dxfattribs={"layer": "E-LITE-DIM"})
     path = _save(tmp_path, doc)
-    assert_allclose(read_dxf(path).xy, centres, atol=1e-9)
+    layout = read_dxf(path)
+    assert_allclose(layout.xy, np.vstack([centres, [(5.4, 11.2)]]), atol=1e-9)
     found, _, _ = scan_dxf(path)
     assert found.rejected[("INSERT", "CEILING LIGHT", "G-ANNO-SYMB", "layer says annotation (ANNO)")] == 1
+    assert found.rejected[("CIRCLE", "", "A-DIM", "layer says annotation (DIM)")] == 1
 
 
 @pytest.mark.parametrize(("name", "what"), [
