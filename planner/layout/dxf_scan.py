@@ -241,7 +241,8 @@ def _arrowhead(entity) -> bool:
     """A filled triangle (``SOLID``/``TRACE`` with its last two corners equal) or a tapered polyline: an arrow's head."""
     kind = entity.dxftype()
     if kind in ("SOLID", "TRACE"):
-        return Vec3(entity.dxf.vtx2).isclose(Vec3(entity.dxf.get("vtx3", entity.dxf.vtx2)))
+        third = entity.dxf.get("vtx2")
+        return third is not None and Vec3(third).isclose(Vec3(entity.dxf.get("vtx3", third)))
     if kind == "LWPOLYLINE":
         return any(start != end for _, _, start, end, _ in entity.get_points("xyseb"))
     return False
