@@ -163,7 +163,7 @@ def rebuild(path: str | Path, outdir: str | Path | None, *, allow_unverified: bo
     doc = load_yaml(path, "no such plan file; run vlp-plan first")
     plan = plan_from_document(doc, where)
     c = codec(plan, where)
-    changed = [m.text() for m in frame_mismatches(plan, where)] if plan.frames is not None else []
+    changed = [m.text() for m in frame_mismatches(plan, where)]  # [] for a plan written without frames
     for entry, raw in zip(plan.luminaires, doc["luminaires"]):
         raw["frame"] = derived_frame(c, entry)
         if c.check.distance > 1:
