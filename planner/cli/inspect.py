@@ -90,8 +90,9 @@ def _print(r: dict) -> None:
         _decisions("takes", r["taken"])
         _decisions("rejects", r["rejected"])
         if r["kind"] == "DXF":
-            print(f"  outlines {len(r['outlines'])} closed polyline(s) on wall/room layers"
-                  + (": " + ", ".join(sorted({o['layer'] for o in r['outlines']})) if r["outlines"] else ""))
+            print(f"  outlines {len(r['outlines'])} closed polyline(s) and {r.get('wall_lines', 0)} open line(s) on "
+                  "wall/room layers" + (": " + ", ".join(sorted({o['layer'] for o in r['outlines']}))
+                                        if r["outlines"] else ""))
         for note in r.get("recovered", []):
             print(f"  note     {note}")
     if r["error"] is not None:

@@ -45,6 +45,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("layout", metavar="LAYOUT", nargs="?",
                    help="drawing or layout file: .dxf, .ifc, .yaml/.yml or .csv")
+    p.add_argument("--from-plan", metavar="PLAN",
+                   help="instead of planning a LAYOUT: make every frame of an edited plan.yaml again from its id, "
+                   "verify it, and write plan.yaml and firmware/ into OUTDIR (default: PLAN's folder); refused "
+                   "if it fails verification, unless --allow-unverified (docs/cli.md)")
+    p.add_argument("--allow-unverified", action="store_true",
+                   help="with --from-plan: write the firmware even when the edited plan fails verification")
     p.add_argument("--list-cameras", action="store_true",
                    help="list the bundled camera profiles (--camera NAME) with their sources, and exit")
     p.add_argument("--leds", type=cli.count_up_to(MAX_LUMINAIRES), metavar="N",
@@ -122,6 +128,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.list_cameras:
         return _list_cameras(args.json)
+    if args.from_plan or args.allow_unverified:
+        from planner.cli.rebuild import from_plan_command
+
+        return from_plan_command(args)
     if not args.layout:
         parser.error("the following arguments are required: LAYOUT")
     from planner.pipeline import (

@@ -34,7 +34,7 @@ from planner.layout.dxf_names import PRESETS, selector
 from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, scan
 from planner.layout.dxf_units import HEIGHT_RANGE_M, Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
-from planner.layout.outline import floor_outline, off_floor
+from planner.layout.outline import floor_outline, off_floor, own_extent
 
 __all__ = ["read_dxf", "scan_dxf", "load_drawing", "PRESETS", "UNIT_TO_M", "OUTLINE_LAYERS"]
 
@@ -226,7 +226,11 @@ def read_dxf(
     unit, reason, unit_notes = choose_unit(lambda s: parts.figures(s, radius_m, biggest), insunits, units, where)
     scale = UNIT_TO_M[unit]
     outline, outline_notes = _outline(found, scale, room, where)
-    luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where, outline)
+    luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where, outline,
+                                        room is not None)
+    if room is None:  # a room the user chose stays, whatever it holds
+        outline, extent_notes = own_extent(outline, np.array([(lum.x, lum.y) for lum in luminaires]).reshape(-1, 2))
+        outline_notes += extent_notes
     return Layout(tuple(luminaires), outline, where, unit, reason,
                   tuple(notes + unit_notes + lum_notes + outline_notes))
 
@@ -259,11 +263,12 @@ def _check_numbers(found: Scan, where: str) -> None:
                              f"(finite, within {limit:g} units, radius > 0); fix or delete that entity")
         if part.size is not None and not 0 < part.size < limit:
             part.size = None  # a symbol of no or absurd size: the radius falls back
-    for outline in found.outlines:
-        pts = np.asarray(outline.points, dtype=float)
-        if not np.isfinite(pts).all() or np.abs(pts).max() > limit:
-            raise InputError(f"{where}: a closed polyline on a wall layer has a corner that is not a plausible "
-                             f"drawing value (finite, within {limit:g} units); fix or delete it")
+    for kind, shapes in (("a closed polyline", [o.points for o in found.outlines]), ("a line", found.segments)):
+        for points in shapes:
+            pts = np.asarray(points, dtype=float)
+            if not np.isfinite(pts).all() or np.abs(pts).max() > limit:
+                raise InputError(f"{where}: {kind} on a wall layer has a corner that is not a plausible drawing value "
+                                 f"(finite, within {limit:g} units); fix or delete it")
 
 
 def _choose_group(found: Scan, members: list[np.ndarray], expected: int | None, where: str
@@ -291,7 +296,8 @@ def _choose_group(found: Scan, members: list[np.ndarray], expected: int | None, 
 
 
 def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None, mount_height_m: float | None,
-                expected: int | None, where: str, outline=None) -> tuple[list[Luminaire], list[str]]:
+                expected: int | None, where: str, outline=None, chosen: bool = False
+                ) -> tuple[list[Luminaire], list[str]]:
     """Merge parts at one point, keep the group --leds names, leave out the few symbols drawn off the floor
     (:func:`planner.layout.outline.off_floor`), convert to metres, sort by (y, x) and name them."""
     if not found.parts:
@@ -300,7 +306,7 @@ def _luminaires(found: Scan, parts: _Parts, scale: float, radius_m: float | None
     merge = parts.merge_radius_m(scale, radius_m)
     members_of, notes = _choose_group(found, _groups(_clusters(xyz[:, :2], merge)), expected, where)
     members_of, off_notes = off_floor(members_of, np.array([xyz[m, :2].mean(axis=0) for m in members_of]), outline,
-                                       expected)
+                                       expected, chosen)
     notes += off_notes
     height = mount_height_m if mount_height_m is not None else DEFAULT_MOUNT_HEIGHT_M
     rows, no_z, low_z = [], 0, []
@@ -339,7 +345,7 @@ def _outline(found: Scan, scale: float, room: str | None, where: str
     """The floor outline [m], or the rooms ``--room`` names (by layer, or by a text inside)."""
     rooms = [[(x * scale, y * scale) for x, y in o.points] for o in found.outlines]
     if room is None:
-        return floor_outline(rooms)
+        return floor_outline(rooms, lines=[[(x * scale, y * scale) for x, y in s] for s in found.segments])
     pattern = room.upper()
     chosen = []
     for candidate, metres in zip(found.outlines, rooms):

@@ -19,7 +19,8 @@ from functools import lru_cache
 
 from planner.errors import UsageError
 
-__all__ = ["LUMINAIRE", "NEUTRAL", "PRESETS", "Selector", "name_class", "selector", "words"]
+__all__ = ["ANNOTATION_MARKS", "BUILDING_WORDS", "LUMINAIRE", "NEUTRAL", "PRESETS", "Selector", "layer_class", "name_class",
+           "selector", "words"]
 
 LUMINAIRE = "luminaire"
 NEUTRAL = ""
@@ -42,12 +43,26 @@ OTHER_WORDS: dict[str, frozenset[str]] = {
     "exit sign": frozenset({"EXIT", "SIGN", "SIGNS", "SIGNAGE"}),
     "wall light": frozenset({"SCONCE", "SCONCES", "WALLLIGHT", "WALLPACK"}),
     "annotation": frozenset({"TEXT", "NOTE", "NOTES", "DIMS", "ANNO", "IDEN", "TAG", "TAGS", "CIRC", "CIRCUIT",
-                             "CIRCUITS", "WIRE", "WIRING", "CONDUIT", "LEGEND", "TITLE"}),
+                             "CIRCUITS", "WIRE", "WIRING", "CONDUIT", "LEGEND", "TITLE", "ANNOTATION", "ANNOTATIONS",
+                             "ARROW", "ARROWS", "LEADER", "LEADERS", "LABEL", "LABELS", "KEYNOTE", "CALLOUT",
+                             "DIMENSION", "DIMENSIONS"}),
     "other device": frozenset({"SPEAKER", "SPEAKERS", "CCTV", "DATA", "TEL", "TELEPHONE", "TV", "BELL", "DOORBELL"}),
 }
 """Words that name something other than a luminaire, by what it is."""
 
 _OTHER = {word: what for what, group in OTHER_WORDS.items() for word in group}
+
+ANNOTATION_MARKS = frozenset({"TEXT", "NOTE", "NOTES", "DIMS", "ANNO", "IDEN", "TAG", "TAGS", "LEGEND", "TITLE",
+                              "ANNOTATION", "ANNOTATIONS", "ARROW", "ARROWS", "LEADER", "LEADERS", "LABEL", "LABELS",
+                              "KEYNOTE", "CALLOUT", "DIMENSION", "DIMENSIONS"})
+"""Annotation words that make a name an annotation wherever they stand in its head: ``TAG-LED-ARROW`` is
+a tag pointing at a light, not a light (the wiring words ``CIRCUIT``, ``WIRE``... decide only as the last)."""
+
+BUILDING_WORDS = frozenset({"COLUMN", "COLUMNS", "COL", "COLS", "PILLAR", "PILLARS", "PIER", "PIERS", "BEAM", "BEAMS",
+                            "DOOR", "DOORS", "WINDOW", "WINDOWS", "STAIR", "STAIRS", "FURNITURE", "DESK", "DESKS",
+                            "TABLE", "TABLES", "CHAIR", "CHAIRS"})
+"""Words that name a building element or furniture: a block so named is no luminaire even on a lighting
+layer (the name itself stays neutral: a ``COLUMN`` elsewhere is neither taken nor rejected)."""
 
 QUALIFIERS: dict[str, frozenset[str]] = {
     "wall light": frozenset({"WALL", "BRACKET", "SCONCE"}),
@@ -105,6 +120,9 @@ def name_class(name: str) -> tuple[str, str]:
         if word in _HEAD_ENDS and head:
             break
         head.append(word)
+    mark = next((w for w in head if w in ANNOTATION_MARKS), None)
+    if mark is not None:
+        return "annotation", mark
     last = next((k for k in range(len(head) - 1, -1, -1) if _word_class(head[k]) is not None), None)
     if last is None:
         return NEUTRAL, ""
@@ -118,6 +136,16 @@ def name_class(name: str) -> tuple[str, str]:
         if hit:
             return what, f"{hit} {word}"
     return LUMINAIRE, word
+
+
+def layer_class(layer: str) -> tuple[str, str]:
+    """What a layer name says (:func:`name_class`), where ``DIM`` in a name that says nothing else marks
+    annotation: on a layer it names dimensions (``A-DIM``); in a block name, or beside a light word
+    (``E-LITE-DIM``), it may mean dimmable."""
+    what, word = name_class(layer)
+    if what == NEUTRAL and "DIM" in words(layer):
+        return "annotation", "DIM"
+    return what, word
 
 
 @dataclass(frozen=True)
@@ -177,11 +205,16 @@ class Selector:
         what, word = name_class(block)
         if what not in (LUMINAIRE, NEUTRAL):
             return "reject", f"block name says {what} ({word})"
+        layer_what, layer_word = layer_class(layer)
+        if not self.patterns and layer_what == "annotation":
+            return "reject", f"layer says annotation ({layer_word})"  # a tag or arrow, however it is named
         if what == LUMINAIRE and not self.patterns and any(p.blocks for p in self.presets):
             return "take", f"block name says luminaire ({word})"
         if self._layer_is_light(layer):
+            building = next((w for w in words(block) if w in BUILDING_WORDS), None)
+            if building is not None and not self.patterns:  # a column drawn on the lighting layer
+                return "reject", f"block name says building element ({building})"
             return "take", "layer matches --layer" if self.patterns else f"layer says luminaire ({name_class(layer)[1]})"
-        layer_what, layer_word = name_class(layer)
         if not self.patterns and layer_what not in (LUMINAIRE, NEUTRAL):
             return "reject", f"layer says {layer_what} ({layer_word})"
         return "enter", ""
@@ -190,7 +223,7 @@ class Selector:
         """``("take", why)``, ``("reject", why)`` or ``("skip", "")`` for a CIRCLE or POINT on ``layer``."""
         if self._layer_is_light(layer):
             return "take", "layer matches --layer" if self.patterns else f"layer says luminaire ({name_class(layer)[1]})"
-        what, word = name_class(layer)
+        what, word = layer_class(layer)
         if not self.patterns and what not in (LUMINAIRE, NEUTRAL):
             return "reject", f"layer says {what} ({word})"
         return "skip", ""

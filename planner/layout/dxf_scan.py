@@ -26,6 +26,8 @@ OUTLINE_LAYERS = ("*WALL*", "*ROOM*", "*OUTLINE*", "A-AREA*", "DLX_*ROOM*")
 _MAX_DEPTH = 16  # block nesting depth followed; deeper (or cyclic) references are ignored
 _REVIT_APPID = "REVIT"
 _NOT_GEOMETRY = frozenset({"TEXT", "MTEXT", "ATTDEF", "ATTRIB", "DIMENSION", "LEADER", "MULTILEADER", "POINT"})
+_TEXTS = frozenset({"TEXT", "MTEXT", "ATTDEF", "ATTRIB"})
+_LEADERS = frozenset({"DIMENSION", "LEADER", "MULTILEADER", "MLEADER", "ARC_DIMENSION", "RADIAL_DIMENSION"})
 
 
 @dataclass
@@ -59,6 +61,8 @@ class Scan:
     selector: Selector
     parts: list[Part] = field(default_factory=list)
     outlines: list[Outline] = field(default_factory=list)
+    segments: list[list[tuple[float, float]]] = field(default_factory=list)
+    """Open polylines and lines on wall and room layers (walls drawn piece by piece) [drawing units]."""
     texts: list[tuple[str, tuple[float, float]]] = field(default_factory=list)
     """Plain text of every TEXT and MTEXT with its WCS position (room names)."""
     layers_seen: Counter = field(default_factory=Counter)
@@ -72,6 +76,7 @@ class Scan:
     _block_radius: dict[str, float | None] = field(default_factory=dict)
     _block_size: dict[str, float | None] = field(default_factory=dict)
     _holds_blocks: dict[str, bool] = field(default_factory=dict)
+    _annotation: dict[str, bool] = field(default_factory=dict)
 
 
 def scan(file: str, selector: Selector, msp) -> Scan:
@@ -155,11 +160,13 @@ def _walk(s: Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry
                                 f"{kind} on {layer}"))
         elif kind in ("TEXT", "MTEXT"):
             _text(s, entity, kind, m)
-        elif kind in ("LWPOLYLINE", "POLYLINE") and outline_layer(layer):
-            points = _closed_points(entity)
-            if points:
-                points = list(m.transform_vertices(points)) if m is not None else points
+        elif kind in ("LWPOLYLINE", "POLYLINE", "LINE") and outline_layer(layer):
+            points, closed = _polyline_points(entity)
+            points = list(m.transform_vertices(points)) if m is not None else points
+            if closed:
                 s.outlines.append(Outline([(p.x, p.y) for p in points], layer, entity.dxf.handle))
+            elif len(points) >= 2:
+                s.segments.append([(p.x, p.y) for p in points])
 
 
 def _text(s: Scan, entity, kind: str, m: Matrix44 | None) -> None:
@@ -190,6 +197,8 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
     s.blocks_seen[name] += 1
     block = insert.block()
     action, why = s.selector.insert(layer, name)
+    if action == "take" and not why.startswith("block matches") and _annotation_only(s, block):
+        action, why = "reject", "block draws only text, leaders or arrowheads"
     if action == "reject" and why.startswith("layer") and _holds_blocks(s, block):
         action, why = "enter", ""  # a neutral block holding blocks is a container, whatever its layer says
     if action == "reject":
@@ -228,6 +237,41 @@ def _holds_blocks(s: Scan, block) -> bool:
     return s._holds_blocks[block.name]
 
 
+def _arrowhead(entity) -> bool:
+    """A filled triangle (``SOLID``/``TRACE`` with its last two corners equal) or a tapered polyline: an arrow's head."""
+    kind = entity.dxftype()
+    if kind in ("SOLID", "TRACE"):
+        third = entity.dxf.get("vtx2")
+        return third is not None and Vec3(third).isclose(Vec3(entity.dxf.get("vtx3", third)))
+    if kind == "LWPOLYLINE":
+        return any(start != end for _, _, start, end, _ in entity.get_points("xyseb"))
+    return False
+
+
+def _annotation_only(s: Scan, block, depth: int = 0) -> bool:
+    """Whether a block draws only annotation: texts alone, or leaders, arrowheads, lines and texts with no
+    closed shape (a tag's arrow). Nested blocks count by what they draw."""
+    if block is None or depth > _MAX_DEPTH:
+        return False
+    if block.name not in s._annotation:
+        s._annotation[block.name] = False  # a cyclic reference is no annotation
+        kinds, marks = set(), False
+        for e in block:
+            kind = e.dxftype()
+            if kind == "INSERT":
+                nested = _annotation_only(s, e.block(), depth + 1)
+                kinds.add("TEXT" if nested else "INSERT")
+                marks |= nested
+                continue
+            kinds.add(kind)
+            marks |= kind in _LEADERS or _arrowhead(e)
+        texts_only = bool(kinds) and kinds <= _TEXTS
+        leader = marks and kinds <= _TEXTS | _LEADERS | {"LINE", "SOLID", "TRACE", "LWPOLYLINE"} and not any(
+            e.dxftype() == "LWPOLYLINE" and e.closed and not _arrowhead(e) for e in block)
+        s._annotation[block.name] = texts_only or leader
+    return s._annotation[block.name]
+
+
 def _block_radius(s: Scan, block) -> float | None:
     """Largest CIRCLE radius drawn directly in a block definition [block units]."""
     if block is None:
@@ -257,8 +301,11 @@ def _block_size(s: Scan, block) -> float | None:
     return s._block_size[block.name]
 
 
-def _closed_points(entity) -> list[Vec3]:
-    """WCS vertices of a closed 2D/3D polyline (closing duplicate dropped), else []."""
+def _polyline_points(entity) -> tuple[list[Vec3], bool]:
+    """WCS vertices of a line or 2D/3D polyline and whether it is closed (closing duplicate dropped; a
+    closed one has at least 3 corners); ``([], False)`` for other polylines (meshes)."""
+    if entity.dxftype() == "LINE":
+        return [Vec3(entity.dxf.start), Vec3(entity.dxf.end)], False
     if entity.dxftype() == "LWPOLYLINE":
         points = list(entity.vertices_in_wcs())
         closed = entity.closed
@@ -266,7 +313,7 @@ def _closed_points(entity) -> list[Vec3]:
         points = list(entity.points_in_wcs())
         closed = entity.is_closed
     else:
-        return []
+        return [], False
     if len(points) > 1 and points[0].isclose(points[-1]):
         points, closed = points[:-1], True
-    return points if closed and len(points) >= 3 else []
+    return points, closed and len(points) >= 3

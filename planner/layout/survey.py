@@ -15,19 +15,19 @@ from pathlib import Path
 import numpy as np
 
 from planner.errors import PlannerError
-from planner.layout.dxf_names import LUMINAIRE, NEUTRAL, name_class
+from planner.layout.dxf_names import LUMINAIRE, NEUTRAL, layer_class, name_class
 from planner.plot_style import save_png, styled
 
 __all__ = ["survey", "draw_survey"]
 
 
-def _says(name: str) -> str:
-    what, word = name_class(name)
+def _says(name: str, layer: bool = False) -> str:
+    what, word = layer_class(name) if layer else name_class(name)
     return "" if what == NEUTRAL else f"{what} ({word})"
 
 
-def _named(counter: Counter) -> list[dict]:
-    return [{"name": name, "count": n, "says": _says(name)}
+def _named(counter: Counter, layers: bool = False) -> list[dict]:
+    return [{"name": name, "count": n, "says": _says(name, layers)}
             for name, n in sorted(counter.items(), key=lambda kv: (-kv[1], kv[0]))]
 
 
@@ -80,10 +80,10 @@ def _survey_dxf(report: dict, path: Path, options) -> None:
     unit = INSUNITS_TO_UNIT.get(code)
     report.update(
         kind="DXF", header=f"$INSUNITS {code}" + (f" = {UNIT_NAMES[unit]}" if unit else ""),
-        selection=found.selector.label, layers=_named(found.layers_seen), blocks=_named(found.blocks_seen),
+        selection=found.selector.label, layers=_named(found.layers_seen, layers=True), blocks=_named(found.blocks_seen),
         taken=_rows(found.taken), rejected=_rows(found.rejected), recovered=notes,
         outlines=[{"layer": o.layer, "handle": o.handle, "corners": len(o.points)} for o in found.outlines],
-        coordinates="drawing units",
+        wall_lines=len(found.segments), coordinates="drawing units",
         points={"taken": [list(p.xyz[:2]) for p in found.parts], "rejected": [[x, y] for x, y, _ in found.rejected_at],
                 "outlines": [[list(p) for p in o.points] for o in found.outlines]},
     )
