@@ -19,7 +19,7 @@ import numpy as np
 from planner.camera import Camera, Poses, rotation_from_angles
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
-from planner.plot_style import save_png, styled
+from planner.plot_style import plain_log_ticks, save_png, styled
 from planner.positioning.error_terms import (
     DEFAULT_TERMS,
     NO_TERMS,
@@ -171,8 +171,9 @@ def budget_text(runs: dict[str, list[Trials]]) -> str:
 
 
 @styled
-def plot_cdf(results: list[Trials], path) -> None:
-    """One panel per tilt: the CDF of each method's error (log axis, cm), as the paper's Fig. 8 and 10."""
+def plot_cdf(results: list[Trials], path, fmt: str = "png") -> None:
+    """One panel per tilt: the CDF of each method's error (log axis, cm), as the paper's Fig. 8 and 10; written
+    as PNG or (``fmt`` "svg") SVG."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(results), figsize=(3.2 * len(results), 3.2), sharey=True, squeeze=False)
@@ -183,13 +184,14 @@ def plot_cdf(results: list[Trials], path) -> None:
             colour, ls = styles.get(name, ("0.2", ":"))
             ax.step(e, np.arange(1, len(e) + 1) / len(e), where="post", color=colour, ls=ls, label=name)
         ax.set_xscale("log")
+        plain_log_ticks(ax.xaxis)
         ax.set_title(f"tilt {r.tilt_deg:.0f} deg")
         ax.set_xlabel("positioning error [cm]")
         ax.grid(True, which="both", color="0.85", lw=0.5)
     axes[0][0].set_ylabel("cumulative fraction of trials")
     axes[0][0].legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    save_png(fig, path)
+    save_png(fig, path, fmt)
 
 
 ERROR_MAX_POSES = 1000
