@@ -10,6 +10,8 @@ import hashlib
 import os
 import shutil
 import tempfile
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -37,7 +39,7 @@ from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layou
 from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
-from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
+from planner.positioning.accuracy import ERROR_MAX_POSES, ERROR_POSES_PER_M2, site_accuracy
 from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import (
@@ -95,6 +97,31 @@ class PlanOptions:
     mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
     coverage_goal: float = COVERAGE_GOAL
     allow_unusable: bool = False  # recorded in the advice: vlp-verify then exits 0 on an unusable plan too
+
+
+class Timings:
+    """Wall-clock seconds of each stage of one run, in order (``vlp-plan --timings``).
+
+    :meth:`stage` ends the running stage and starts the next, announcing it through ``show`` (progress on a
+    terminal); a stage met twice adds up; :meth:`stop` ends the last.
+    """
+
+    def __init__(self, show: Callable[[str], None] | None = None):
+        self.show = show
+        self.seconds: dict[str, float] = {}
+        self._running: tuple[str, float] | None = None
+
+    def stage(self, name: str, detail: str = "") -> None:
+        self.stop()
+        if self.show:
+            self.show(f"{name}: {detail}" if detail else name)
+        self._running = (name, time.perf_counter())
+
+    def stop(self) -> None:
+        if self._running:
+            name, t0 = self._running
+            self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - t0
+            self._running = None
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -162,7 +189,7 @@ def _read_layout(path: Path, leds: int | None, options: ReadOptions) -> Layout:
     return check_layout(layout, expected=leds)
 
 
-def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
+def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Timings | None = None) -> Plan:
     """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification, frames, error map.
 
     ``auto`` makes the paper's and the window scheme, verifies both, and keeps the
@@ -182,6 +209,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     radii = np.array([lum.radius for lum in layout.luminaires])
     graph = build_graph(xy)
     cam = options.camera
+    clock = timings or Timings()
+    clock.stage("pose sampling", f"{len(xy)} luminaires")
 
     area = working_area(xy, layout.outline)
     with_error_map = options.verify and options.error_poses_per_m2 > 0
@@ -198,6 +227,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         return classify(observations[options.seed], ids) if options.verify else None
 
     def plan_three():
+        clock.stage("IDs (three-LED receiver)", options.scheme + " scheme")
         proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
         made = {}
         if options.scheme in ("paper", "auto"):
@@ -220,6 +250,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                                                                       install_tolerance_m=options.install_tolerance_m,
                                                                       proof=proof)))
 
+        clock.stage("window-set check")
         made = {k: judged(a, v) for k, (a, v) in made.items()}
         if options.scheme == "auto":
             clean = [k for k, (_, v) in made.items() if v is not None and v.clean]  # auto verifies: never None
@@ -240,6 +271,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     def plan_two():
         from planner.receivers import plan_gravity
 
+        clock.stage("IDs (gravity receiver)", options.scheme + " scheme")
         return plan_gravity(xyz, radii, graph, cam, sample, scheme=options.scheme, per_m2=options.poses_per_m2,
                             seed=options.seed, time_budget=options.time_budget, tolerance_m=options.tolerance_m,
                             install_tolerance_m=options.install_tolerance_m)
@@ -265,6 +297,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         assignment, verification, considered = planned[mode]
         receiver = ReceiverChoice(mode, coverage, seen_shares(sample.first(options.poses_per_m2)[1]), reason,
                                   options.accelerometer_sigma_deg)
+    clock.stage("frames")
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
     code = line_code(options.line_code)
     index = assignment.ids - 1
@@ -280,6 +313,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                           mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
+        clock.stage("error map", f"at most {ERROR_MAX_POSES} poses")
         gravity = receiver is not None and receiver.mode == "gravity"  # its accelerometer's error: one more term
         sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
         accuracy = site_accuracy(xyz, radii, layout.outline, cam, "gravity" if gravity else options.locate_method,
@@ -288,6 +322,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
                                  options.error_terms, accelerometer_sigma_rad=sigma_rad)
     advice = None
     if verification is not None:
+        clock.stage("advice")
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
         share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
         mode = receiver.mode if receiver is not None else "three"
@@ -319,7 +354,8 @@ class FirmwareOptions:
 
 
 def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
-                  firmware: FirmwareOptions | None = FirmwareOptions(), with_report: bool = True) -> list[Path]:
+                  firmware: FirmwareOptions | None = FirmwareOptions(), with_report: bool = True,
+                  timings: Timings | None = None) -> list[Path]:
     """Write ``plan.yaml``, the annotated DXF (and IFC, from an IFC model), the maps, the site report and the
     firmware files into ``outdir``, atomically.
 
@@ -340,7 +376,9 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
     except OSError as exc:
         raise UsageError(f"-o {outdir}: cannot write there ({exc.strerror}); choose another -o") from None
     source = Path(plan.layout.source_path)
+    clock = timings or Timings()
     try:
+        clock.stage("plan.yaml")
         stage.chmod(0o755)  # mkdtemp makes it private; outputs are for the whole crew
         document = plan_document(plan, _sha256(source) if source.is_file() else "")
         text = dump_plan(document)
@@ -349,12 +387,14 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         if firmware is not None and plan.modulation is not None:
             from planner.firmware.render import write_firmware
 
+            clock.stage("firmware", f"{len(written.luminaires)} drivers")
             write_firmware(written, plan_hash(text), stage, template_dir=firmware.template_dir,
                            mcu_clock_hz=firmware.mcu_clock_hz, image_version=firmware.image_version)
         from planner import __version__
         from planner.layout.dxf_annotate import write_annotated_dxf
 
         is_dxf = source.suffix.lower() == ".dxf"
+        clock.stage("annotated drawing")
         write_annotated_dxf(stage / f"{source.stem}-vlp.dxf", plan.layout, written.luminaires,
                             source_path=source if is_dxf else None, tool_version=__version__)
         if source.suffix.lower() == ".ifc":
@@ -365,6 +405,7 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         if with_map:
             from planner.report.maps import render_coverage, render_error, render_map
 
+            clock.stage("maps")
             render_map(plan, stage / "map.png")
             if plan.verification is not None:
                 render_coverage(plan.verification, plan.layout.xy,
@@ -374,7 +415,9 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         if with_report:
             from planner.report.files import write_report
 
+            clock.stage("site report")
             write_report(written, plan_hash(text), stage, stage)
+        clock.stop()
         names = sorted(p.name for p in stage.iterdir())
         if outdir.exists():
             old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")

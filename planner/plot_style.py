@@ -35,8 +35,21 @@ RC: dict[RcKeyType, Any] = {
     "pdf.fonttype": 42,
     "text.parse_math": False,  # names and file names are text: "$x$" must not become math (or an error)
 }
-"""Matplotlib settings shared by all figures."""
+"""Matplotlib settings shared by all figures. With math parsing off, matplotlib's own mathtext tick labels
+(log axes: ``$\\mathdefault{10^{1}}$``) would print raw: give log axes :func:`plain_log_ticks`."""
 
+
+def plain_log_ticks(axis) -> None:
+    """Label a log ``axis`` (``ax.xaxis``) in plain numbers (0.1, 1, 10; 2, 3 between close decades), not
+    mathtext, which :data:`RC` does not parse."""
+    from matplotlib.ticker import LogFormatter
+
+    class Plain(LogFormatter):
+        def _num_to_string(self, x, vmin, vmax):
+            return f"{x:g}"
+
+    axis.set_major_formatter(Plain(10))
+    axis.set_minor_formatter(Plain(10, labelOnlyBase=False))
 
 
 def styled(draw):
@@ -53,11 +66,17 @@ def styled(draw):
     return wrapper
 
 
-def save_png(fig, path: str | Path | IO[bytes]) -> None:
-    """Write ``fig`` as PNG without a timestamp or version (byte-stable output), and close it."""
+def save_png(fig, path: str | Path | IO[bytes], fmt: str = "png") -> None:
+    """Write ``fig`` as PNG (or ``fmt`` "svg", text kept as text) without a timestamp or version (byte-stable
+    output), and close it."""
+    import matplotlib
     import matplotlib.pyplot as plt
 
-    fig.savefig(path, format="png", metadata={"Software": None})
+    if fmt == "svg":
+        with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "vlp"}):
+            fig.savefig(path, format="svg", metadata={"Date": None, "Creator": None})
+    else:
+        fig.savefig(path, format="png", metadata={"Software": None})
     plt.close(fig)
 
 

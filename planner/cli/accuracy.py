@@ -36,7 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
     p.add_argument("--seed", type=cli.seed, default=0, help="random seed (default 0)")
-    p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (default: no plot)")
+    p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (SVG if it ends in .svg; "
+                   "default: no plot)")
     cli.add_camera_flag(p, "the phone on the rig; default: the paper's camera (its tilts and heights are the rig's)")
     cli.add_error_budget_flags(p, "the experiment")
     cli.common_flags(p, "print the figures as JSON instead of the table")
@@ -65,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     runs = paper_budget(tilts, args.trials, terms, args.radius, args.seed, camera)
     pixel = runs.get("edge", runs["exact"])
     if cdf is not None:
-        write_atomically(cdf, lambda tmp: plot_cdf(runs["all"], tmp))
+        fmt = "svg" if cdf.suffix.lower() == ".svg" else "png"
+        write_atomically(cdf, lambda tmp: plot_cdf(runs["all"], tmp, fmt))
     if args.json:
         figures = {name: [{"tilt_deg": r.tilt_deg, "unusable_trials": r.unusable,
                            **{m: dict(zip(("mean_cm", "p90_cm"), (round(v, 4) for v in stats_cm(e))))

@@ -118,6 +118,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--no-map", action="store_true", help="do not draw map.png, coverage.png and error.png")
     g.add_argument("--no-report", action="store_true",
                    help="do not write site-report.html and site-report.pdf (vlp-report writes them later)")
+    g.add_argument("--timings", action="store_true",
+                   help="after the summary, print each stage's wall-clock time on stderr, one line per stage")
     cli.common_flags(p, "print a JSON summary on stdout instead of text")
     return p
 
@@ -137,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     from planner.pipeline import (
         FirmwareOptions,
         PlanOptions,
+        Timings,
         default_outdir,
         make_plan,
         read_layout,
@@ -149,14 +152,14 @@ def main(argv: list[str] | None = None) -> int:
     camera = cli.camera_from_args(args)  # a bad --camera is refused before any work
     t0 = time.perf_counter()
     read_opts = cli.read_options(args)
-    cli.progress(f"reading {args.layout}")
+    clock = Timings(None if args.json else cli.progress)  # progress on a terminal, never with --json
+    clock.stage("reading", str(args.layout))
     layout = read_layout(args.layout, args.leds, read_opts)
     from planner.budget import check_work, plan_work
 
     work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
-    cli.progress(f"planning {len(layout.luminaires)} luminaires")
     plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, camera, not args.no_verify,
                                          args.poses_per_m2, args.tolerance, args.check_distance,
                                          args.locate_method, args.error_poses_per_m2, args.line_code,
@@ -164,12 +167,14 @@ def main(argv: list[str] | None = None) -> int:
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
                                          mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
                                          accelerometer_sigma_deg=args.accelerometer_deg,
-                                         coverage_goal=args.coverage_goal / 100, allow_unusable=args.allow_unusable))
+                                         coverage_goal=args.coverage_goal / 100, allow_unusable=args.allow_unusable),
+                     clock)
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
-    cli.progress(f"writing {outdir}")
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
                                                              args.mcu_clock_hz, args.image_version)
-    written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware, with_report=not args.no_report)
+    written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware, with_report=not args.no_report,
+                            timings=clock)
+    clock.stop()
     a, g = plan.assignment, plan.graph
     check = plan.check
     assert check is not None  # make_plan always sets the check code
@@ -207,6 +212,9 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(summary, indent=2))
     else:
         _print_summary(summary)
+    if args.timings:
+        for name, seconds in [*clock.seconds.items(), ("total", summary["seconds"])]:
+            print(f"vlp-plan: timing {seconds:8.2f} s  {name}", file=sys.stderr)
     v = plan.verification
     unusable = plan.advice is not None and not plan.advice.usable
     few = 2 if plan.receiver is not None and plan.receiver.mode == "gravity" else 3

@@ -19,7 +19,7 @@ import numpy as np
 from planner.camera import Camera, Poses, rotation_from_angles
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
-from planner.plot_style import save_png, styled
+from planner.plot_style import plain_log_ticks, save_png, styled
 from planner.positioning.error_terms import (
     DEFAULT_TERMS,
     NO_TERMS,
@@ -171,8 +171,9 @@ def budget_text(runs: dict[str, list[Trials]]) -> str:
 
 
 @styled
-def plot_cdf(results: list[Trials], path) -> None:
-    """One panel per tilt: the CDF of each method's error (log axis, cm), as the paper's Fig. 8 and 10."""
+def plot_cdf(results: list[Trials], path, fmt: str = "png") -> None:
+    """One panel per tilt: the CDF of each method's error (log axis, cm), as the paper's Fig. 8 and 10; written
+    as PNG or (``fmt`` "svg") SVG."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(results), figsize=(3.2 * len(results), 3.2), sharey=True, squeeze=False)
@@ -183,13 +184,14 @@ def plot_cdf(results: list[Trials], path) -> None:
             colour, ls = styles.get(name, ("0.2", ":"))
             ax.step(e, np.arange(1, len(e) + 1) / len(e), where="post", color=colour, ls=ls, label=name)
         ax.set_xscale("log")
+        plain_log_ticks(ax.xaxis)
         ax.set_title(f"tilt {r.tilt_deg:.0f} deg")
         ax.set_xlabel("positioning error [cm]")
         ax.grid(True, which="both", color="0.85", lw=0.5)
     axes[0][0].set_ylabel("cumulative fraction of trials")
     axes[0][0].legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    save_png(fig, path)
+    save_png(fig, path, fmt)
 
 
 ERROR_MAX_POSES = 1000
@@ -198,7 +200,11 @@ ERROR_MAX_POSES = 1000
 
 ERROR_CELL_M = 1.0
 """Smallest side of the squares over which the error map takes its median and 90th percentile [m];
-squares grow (in steps of 0.5 m) so that they hold about eight sampled poses each."""
+squares grow (in steps of 0.5 m) so that they hold :data:`ERROR_CELL_POSES` sampled poses each."""
+
+ERROR_CELL_POSES = 20
+"""Sampled poses an error-map square holds on average: a 90th percentile of fewer is one or two poses' error
+(squares of eight poses each, about six located, drew noise as if it were measured)."""
 
 
 BUDGET_MAX_POSES = 250
@@ -231,8 +237,9 @@ class SiteAccuracy:
                 "cell_m": self.cell_m, "terms": self.terms.to_dict(), "includes": self.terms.active,
                 "budget": {k: {"located": n, "median_m": m, "p90_m": p} for k, (n, m, p) in self.budget.items()},
                 "dominant": self.dominant}
-    def cells(self, cell_m: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Cell edges in x and y [m] and the median and 90th-percentile error per cell [m] (NaN: no fix)."""
+    def cells(self, cell_m: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Cell edges in x and y [m], the median and 90th-percentile error per cell [m] (NaN: no fix) and the
+        poses located in each cell."""
         cell_m = cell_m or self.cell_m
         ok = np.isfinite(self.error_m)
         xy, err = self.position[ok, :2], self.error_m[ok]
@@ -241,12 +248,12 @@ class SiteAccuracy:
         edges = [np.arange(lo[k], hi[k] + cell_m / 2, cell_m) for k in (0, 1)]
         shape = (len(edges[0]) - 1, len(edges[1]) - 1)
         ix = [np.clip(np.searchsorted(edges[k], xy[:, k], side="right") - 1, 0, shape[k] - 1) for k in (0, 1)]
-        med, p90 = np.full(shape, np.nan), np.full(shape, np.nan)
+        med, p90, count = np.full(shape, np.nan), np.full(shape, np.nan), np.zeros(shape, int)
         flat = ix[0] * shape[1] + ix[1]
         for cell in np.unique(flat):
             vals = err[flat == cell]
-            med.flat[cell], p90.flat[cell] = np.median(vals), np.percentile(vals, 90)
-        return edges[0], edges[1], med, p90
+            med.flat[cell], p90.flat[cell], count.flat[cell] = np.median(vals), np.percentile(vals, 90), len(vals)
+        return edges[0], edges[1], med, p90, count
 
 
 def method_text(method: str) -> str:
@@ -275,7 +282,7 @@ def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, m
 
     area = working_area(xyz[:, :2], outline) if sample is None else sample.area
     per_m2 = error_per_m2(area, per_m2)
-    cell = max(ERROR_CELL_M, math.ceil(2 * math.sqrt(8 / per_m2)) / 2)
+    cell = max(ERROR_CELL_M, math.ceil(2 * math.sqrt(ERROR_CELL_POSES / per_m2)) / 2)
     poses = sample_poses(area, camera, per_m2=per_m2, seed=seed) if sample is None else sample.first(per_m2)[0]
     errors = site_errors(xyz, radii, poses, camera, method, terms, seed, accelerometer_sigma_rad)
     budget = {}

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import textwrap
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,8 +18,6 @@ from planner.plot_style import png_bytes, styled
 from planner.report.content import AdviceSection, BillLine, Stop
 
 if TYPE_CHECKING:
-    from matplotlib.typing import RcKeyType
-
     from planner.plan_file import Entry, ModulationFields, PlanFile
 
 TIMING_LUMINAIRES = 4
@@ -30,9 +28,6 @@ TIMING_FRAMES = 2
 
 PAGE_IN = (11.69, 8.27)
 """PDF page size [inch]: A4 landscape."""
-
-LINES_PER_PAGE = 52
-"""Text lines per PDF page of the ID bill and the checklist."""
 
 LINE_CHARS = 170
 """Longest text line on a PDF page; longer checklist lines are cut (the HTML report has them whole)."""
@@ -168,39 +163,48 @@ def advice_lines(advice: AdviceSection) -> tuple[str, list[str]]:
     return advice.verdict, lines
 
 
-CORE_FONTS: dict[RcKeyType, Any] = {"pdf.use14corefonts": True, "font.family": "monospace", "font.monospace": ["Courier"],
-              "font.weight": "medium"}
-"""Text pages in the PDF's built-in Courier: about 13x faster to write than an embedded font (measured: 500
-lines 0.13 s against 1.6 s) and selectable; used when every character is in its encoding (cp1252)."""
+MONO = "DejaVu Sans Mono"
+"""The text pages' table font: shipped with matplotlib, embedded (``pdf.fonttype`` 42 in the shared style),
+so every page looks the same whatever fonts the reading machine has; it has Latin, Greek and Cyrillic."""
+
+MONO_ADVANCE_EM = 0.602
+"""Advance width of every DejaVu Sans Mono glyph [em] (1233/2048)."""
+
+BODY_PT = (7.5, 10.0)
+"""Smallest and largest table font size [pt]: the size makes the section's longest line fill the page width
+(a :data:`LINE_CHARS` line needs the smallest)."""
+
+TOP, BOTTOM, LEFT, WIDTH = 0.91, 0.04, 0.04, 0.92
+"""Where the text pages' table sits [share of the page]: below the title (placed as on the figure pages)."""
+
+
+def _page_title(fig, title: str) -> None:
+    """The title every PDF page after the first carries, at one place and in one font."""
+    fig.text(LEFT, 0.955, title, fontsize=12, weight="bold")
 
 
 def _text_pages(pdf, title: str, header: str, lines: list[str]) -> None:
-    import matplotlib
+    """Fixed-width table pages in the embedded :data:`MONO`, sized to fill the width, alternate lines shaded."""
     import matplotlib.pyplot as plt
 
-    rc: dict[RcKeyType, Any]
-    try:
-        "".join([title, header, *lines]).encode("cp1252")
-        rc, family = CORE_FONTS, "monospace"
-    except UnicodeEncodeError:  # names in other scripts: embed DejaVu, which has them
-        rc, family = {}, "DejaVu Sans Mono"
-    per_page = LINES_PER_PAGE - 2
+    longest = max(map(len, [header, *lines]))
+    width_pt = WIDTH * PAGE_IN[0] * 72
+    size = min(BODY_PT[1], max(BODY_PT[0], width_pt / (MONO_ADVANCE_EM * max(longest, 1))))
+    step = 1.45 * size / (PAGE_IN[1] * 72)  # line pitch [share of the page height]
+    per_page = int((TOP - BOTTOM) / step) - 2
     pages = max(1, -(-len(lines) // per_page))
-    step = 0.88 / LINES_PER_PAGE
-    with matplotlib.rc_context(rc):
-        for p in range(pages):
-            fig = plt.figure(figsize=PAGE_IN)
-            fig.text(0.04, 0.955, f"{title}" + (f"  (page {p + 1} of {pages})" if pages > 1 else ""), fontsize=12,
-                     weight="bold", family=family)
-            fig.text(0.04, 0.91, header, family=family, fontsize=7.5, weight="bold", va="top")
-            for k, line in enumerate(lines[p * per_page:(p + 1) * per_page]):
-                y = 0.91 - (k + 1.3) * step
-                if k % 2:
-                    fig.patches.append(plt.Rectangle((0.035, y - 0.6 * step), 0.93, step, color="0.92",
-                                                     transform=fig.transFigure, zorder=0))
-                fig.text(0.04, y, line, family=family, fontsize=7.5, va="center")
-            pdf.savefig(fig)
-            plt.close(fig)
+    for p in range(pages):
+        fig = plt.figure(figsize=PAGE_IN)
+        _page_title(fig, title + (f"  (page {p + 1} of {pages})" if pages > 1 else ""))
+        fig.text(LEFT, TOP, header, family=MONO, fontsize=size, weight="bold", va="top")
+        for k, line in enumerate(lines[p * per_page:(p + 1) * per_page]):
+            y = TOP - (k + 1.5) * step
+            if k % 2:
+                fig.patches.append(plt.Rectangle((LEFT - 0.005, y - 0.5 * step), WIDTH + 0.01, step, color="0.92",
+                                                 transform=fig.transFigure, zorder=0))
+            fig.text(LEFT, y, line, family=MONO, fontsize=size, va="center")
+        pdf.savefig(fig)
+        plt.close(fig)
 
 
 def _image_page(pdf, title: str, png: bytes | None, missing: str) -> None:
@@ -210,7 +214,7 @@ def _image_page(pdf, title: str, png: bytes | None, missing: str) -> None:
     import matplotlib.pyplot as plt
 
     fig = plt.figure(figsize=PAGE_IN)
-    fig.text(0.04, 0.955, title, fontsize=12, weight="bold")
+    _page_title(fig, title)
     ax = fig.add_axes((0.03, 0.03, 0.94, 0.89))
     ax.set_axis_off()
     if png is None:

@@ -135,7 +135,28 @@ def render_map(plan: Plan, path: str | Path) -> None:
 
 
 COVERAGE_BIN_M = 0.25
-"""Side of the squares over which the coverage map averages poses [m]."""
+"""Smallest side of the squares over which the coverage map averages poses [m]; squares grow (in steps of
+0.25 m) until the median square holds twice :data:`THIN_POSES` sampled poses."""
+
+THIN_POSES = 10
+"""Squares of the coverage and error maps holding fewer poses than this are hatched (and said to be in the
+legend): a share or a percentile of so few poses is not a measurement of that square."""
+
+
+def _hatch_thin(ax, ex: np.ndarray, ey: np.ndarray, count: np.ndarray, what: str):
+    """Hatch the squares (edges ``ex``, ``ey`` [m]) whose ``count`` is from 1 to below :data:`THIN_POSES`;
+    return a legend handle saying so, or None if no square is thin."""
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Patch, Rectangle
+
+    thin = np.argwhere((count > 0) & (count < THIN_POSES))
+    if not len(thin):
+        return None
+    label = f"fewer than {THIN_POSES} {what} in the square: too few to read alone"
+    squares = [Rectangle((ex[i], ey[j]), ex[i + 1] - ex[i], ey[j + 1] - ey[j]) for i, j in thin]
+    ax.add_collection(PatchCollection(squares, facecolor="none", edgecolor="0.5", hatch="////", linewidth=0,
+                                      zorder=1))
+    return Patch(facecolor="white", edgecolor="0.5", hatch="////", linewidth=0, label=label)
 
 
 @styled
@@ -154,10 +175,15 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
     from planner.verify.verify import AMBIGUOUS, DECODABLE
 
     pos = v.position[:, :2]
-    lo = np.minimum(pos.min(axis=0), xy.min(axis=0)) - COVERAGE_BIN_M
-    hi = np.maximum(pos.max(axis=0), xy.max(axis=0)) + COVERAGE_BIN_M
-    bins = [np.arange(lo[k], hi[k] + COVERAGE_BIN_M, COVERAGE_BIN_M) for k in (0, 1)]
-    total, _, _ = np.histogram2d(pos[:, 0], pos[:, 1], bins=bins)
+    side = COVERAGE_BIN_M
+    while True:  # the squares the poses fill hold 2 x THIN_POSES each or more (median)
+        lo = np.minimum(pos.min(axis=0), xy.min(axis=0)) - side
+        hi = np.maximum(pos.max(axis=0), xy.max(axis=0)) + side
+        bins = [np.arange(lo[k], hi[k] + side, side) for k in (0, 1)]
+        total, _, _ = np.histogram2d(pos[:, 0], pos[:, 1], bins=bins)
+        if not total.any() or np.median(total[total > 0]) >= 2 * THIN_POSES or side >= np.ptp(pos, axis=0).max():
+            break
+        side += COVERAGE_BIN_M
     good, _, _ = np.histogram2d(pos[v.status == DECODABLE, 0], pos[v.status == DECODABLE, 1], bins=bins)
     with np.errstate(invalid="ignore", divide="ignore"):
         share = np.where(total > 0, good / total, np.nan)
@@ -169,19 +195,21 @@ def coverage_figure(v: Verification, xy: np.ndarray, site: str):
     cmap = plt.get_cmap("gray").with_extremes(bad="0.75")
     mesh = ax.pcolormesh(bins[0], bins[1], share.T, cmap=cmap, vmin=0, vmax=1, shading="flat")
     fig.colorbar(mesh, ax=ax, label="decodable share of sampled poses", fraction=0.04)
+    thin = _hatch_thin(ax, bins[0], bins[1], total, "sampled poses")
     ax.scatter(xy[:, 0], xy[:, 1], s=12, facecolors="none", edgecolors="0.55", linewidths=0.8, label="luminaire")
     amb = v.status == AMBIGUOUS
     if amb.any():
         ax.scatter(pos[amb, 0], pos[amb, 1], marker="x", s=18, c="black", linewidths=0.8, label="ambiguous pose")
     ax.set_title(
-        f"{site}, {v.poses} poses, "
-        f"{100 * v.coverage:.1f} % decodable, {v.count(AMBIGUOUS)} ambiguous", fontsize=10)
+        f"{site}, {v.poses} poses, {100 * v.coverage:.1f} % decodable, {v.count(AMBIGUOUS)} ambiguous; "
+        f"{side:g} m squares", fontsize=10)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
     ax.set_xlim(bins[0][0], bins[0][-1])  # fixed limits: the layout sizes its margins for the ticks drawn
     ax.set_ylim(bins[1][0], bins[1][-1])
-    fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    handles = ax.get_legend_handles_labels()[0] + ([thin] if thin else [])
+    fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return fig
 
 
@@ -201,7 +229,7 @@ def error_figure(plan: Plan):
 
     acc = plan.accuracy
     assert acc is not None  # drawn only for a plan with an error map
-    ex, ey, med, p90 = acc.cells()
+    ex, ey, med, p90, count = acc.cells()
     finite = p90[np.isfinite(p90)]
     top = float(finite.max()) if len(finite) else 1.0
     unit, scale = ("mm", 1e3) if top < 0.01 else ("cm", 1e2)
@@ -213,6 +241,7 @@ def error_figure(plan: Plan):
     xy = plan.layout.xy
     for ax, grid, title in ((axes[0], med, "median"), (axes[1], p90, "90th percentile")):
         mesh = ax.pcolormesh(ex, ey, grid.T * scale, cmap=cmap, vmin=0, vmax=top * scale, shading="flat")
+        thin = _hatch_thin(ax, ex, ey, count, "located poses")
         ax.scatter(xy[:, 0], xy[:, 1], s=8, facecolors="none", edgecolors="0.5", linewidths=0.5)
         ax.set_title(f"{title} error per {acc.summary()['cell_m']:g} m square", fontsize=9)
         ax.set_xlabel("x [m]")
@@ -222,6 +251,9 @@ def error_figure(plan: Plan):
     s = acc.summary()
     title = (f"{Path(plan.layout.source_path).name}: {method_text(s['method'])} with "
              f"{', '.join(TERM_NAMES[k] for k in s['includes']) or 'exact images'}, "
-             f"{s['located']} of {s['poses']} sampled poses located")
+             f"{s['located']} of {s['poses']} sampled poses located, median {np.median(count[count > 0]):.0f} "
+             f"a square")
     fig.suptitle(textwrap.fill(title, int(12 * fig.get_figwidth())), fontsize=10)  # about 12 characters per inch
+    if thin:
+        fig.legend(handles=[thin], loc="outside lower center", fontsize=8, frameon=False)
     return fig

@@ -162,17 +162,65 @@ def render_pdf(pdf: Path, out: Path) -> list[Path]:
     return pngs
 
 
-@pytest.mark.needs_poppler
-def test_pdf_report_renders_every_page(site, tmp_path):
+def blank_pages(pngs: list[Path]) -> list[str]:
+    """The rendered pages with (almost) no ink below the title band: a page holding only its title is blank."""
     import matplotlib.image as mpimg
 
+    blank = []
+    for png in pngs:
+        grey = mpimg.imread(png)[..., :3].mean(axis=2)
+        body = grey[int(0.09 * len(grey)):]  # the title sits in the top 5 % of every page
+        if (body < 0.5).mean() <= 0.001:
+            blank.append(png.name)
+    return blank
+
+
+def pdf_fonts(pdf: Path) -> list[dict[str, str]]:
+    """``pdffonts``' table: one dict per font (name, type, emb)."""
+    assert shutil.which("pdffonts"), "pdffonts is needed: apt-get install poppler-utils"
+    out = subprocess.run(["pdffonts", str(pdf)], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[1].startswith("---"), out
+    columns = [len(c) for c in out[1].split(" ")]  # the dashes give each column's width
+    fonts = []
+    for row in out[2:]:
+        cells, at = [], 0
+        for width in columns:
+            cells.append(row[at:at + width].strip())
+            at += width + 1
+        fonts.append({"name": cells[0], "type": cells[1], "emb": cells[3]})
+    return fonts
+
+
+@pytest.mark.needs_poppler
+def test_pdf_report_renders_every_page(site, tmp_path):
     pngs = render_pdf(site / "plan" / "site-report.pdf", tmp_path)
     # title, the site advice (grid-32 is below the 90 % goal), 5 figures, the error budget, the bill (1 page for
     # 8 IDs) and the checklist (1 page for 32 stops)
     assert len(pngs) == 10
-    for png in pngs:
-        ink = mpimg.imread(png)[..., :3].mean(axis=2) < 0.5
-        assert ink.mean() > 0.001, f"{png.name} is blank"
+    assert blank_pages(pngs) == []
+
+
+@pytest.mark.needs_poppler
+def test_pdf_report_embeds_every_font_it_uses(site):
+    fonts = pdf_fonts(site / "plan" / "site-report.pdf")
+    assert fonts, "pdffonts lists no font"
+    assert [f["name"] for f in fonts if f["emb"] != "yes"] == []
+    # one typeface: DejaVu Sans for titles and text, its monospaced face for the tables; never a core-14 font
+    assert {f["name"].split("+")[-1] for f in fonts} <= {"DejaVuSans", "DejaVuSans-Bold", "DejaVuSansMono",
+                                                          "DejaVuSansMono-Bold"}
+    assert {f["name"].split("+")[-1] for f in fonts} >= {"DejaVuSansMono", "DejaVuSans-Bold"}
+
+
+@pytest.mark.needs_poppler
+def test_the_blank_page_check_finds_a_page_with_only_its_title(tmp_path):
+    from planner.report.figures import write_pdf
+
+    pdf = tmp_path / "thin.pdf"
+    summary = [(f"row {k}", "a value long enough to put some ink on the title page " * 2) for k in range(8)]
+    stops = [f"[  ]  {k:>4}  L{k:<6}  {k * 0.5:>8.2f}  not flashed" for k in range(30)]
+    write_pdf(pdf, "title", "subtitle", summary, [], ("ID  luminaires", []), ("done  stop", stops))
+    pngs = render_pdf(pdf, tmp_path)
+    assert len(pngs) == 3 and blank_pages(pngs) == ["page-2.png"]  # the bill has no line: only its title
 
 
 @pytest.mark.needs_chromium
@@ -232,7 +280,7 @@ def test_replanning_refuses_to_delete_an_as_built_journal(site, tmp_path, capsys
 
 
 @pytest.mark.needs_poppler
-def test_pdf_names_outside_the_builtin_font_fall_back_to_an_embedded_one(tmp_path):
+def test_pdf_shows_names_in_other_scripts(tmp_path):
     from planner.report.files import write_report
 
     doc = minimal_plan([{"name": name, "x": float(k), "y": 0.0, "id": k + 1}
@@ -243,3 +291,4 @@ def test_pdf_names_outside_the_builtin_font_fall_back_to_an_embedded_one(tmp_pat
     assert "Светильник-1" in text and "Büro-2" in text  # real text, not boxes or '?'
     assert "Светильник-1" in html.read_text()
     assert len(render_pdf(pdf, tmp_path)) == 7  # title, 3 "not drawn" map pages, route, bill, checklist
+    assert [f["name"] for f in pdf_fonts(pdf) if f["emb"] != "yes"] == []
