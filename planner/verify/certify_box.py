@@ -220,11 +220,17 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
     fdir, can, todo = np.zeros(n_led, np.bool_), np.zeros(n_led, np.bool_), np.zeros(n_led, np.bool_)
     k_sure = np.array([kappa[:, 0, side].max() for side in range(4)])
     k_may = np.array([kappa[:, 1, side].min() for side in range(4)])
+    corner = math.hypot(view[2], view[3])  # tan of the outer rectangle's corner angle
     w = TWO_PI / SECTORS
     for i in range(len(xy)):
         vx, vy = xy[i, 0] - qcx, xy[i, 1] - qcy
         v0 = math.hypot(vx, vy)
         v_lo, v_hi = max(v0 - rv, 0.0), v0 + rv
+        seen_n[i], maybe_n[i] = 0, 0
+        # cheap exclusion first: tan θ >= V cos τ / (L + V sin τ) lies beyond the view's corner
+        if v_lo * math.cos(tau1) > corner * (big_l1 + v_lo * s1):
+            t_lo[i], t_hi[i] = math.inf, math.inf
+            continue
         full_dir = v0 <= rv
         if full_dir:
             c_lo, c_hi, b_lo, b_hi = -1.0, 1.0, 0.0, TWO_PI
@@ -239,7 +245,6 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
         p_lo, p_hi = min(c_lo * s0, c_lo * s1), max(c_hi * s0, c_hi * s1)
         wz_lo = big_l0 + min(v_lo * p_lo, v_hi * p_lo, v_lo * p_hi, v_hi * p_hi)
         wz_hi = big_l1 + max(v_lo * p_lo, v_hi * p_lo, v_lo * p_hi, v_hi * p_hi)
-        seen_n[i], maybe_n[i] = 0, 0
         if wz_hi < wz_min:  # never in view
             t_lo[i], t_hi[i] = math.inf, math.inf
             continue
