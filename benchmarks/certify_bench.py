@@ -77,7 +77,7 @@ def main() -> None:
                              np.empty(0, dtype=np.int64), d)
         found |= set(map(tuple, buf[:k].tolist()))
     kept = set(map(tuple, cert.triangles.tolist()))
-    inside = {t for t in found if t in set(map(tuple, cand.tolist()))}
+    inside = found & set(map(tuple, cand.tolist()))
     print(f"sampled: {len(inside):,} distinct windows (of the proved set) in {args.poses:,} poses "
           f"({time.perf_counter() - t0:.1f} s); kept by the certificate: {len(inside & kept):,}; "
           f"ratio kept / sampled: {len(kept) / max(len(inside), 1):.2f}, candidates / sampled: "
