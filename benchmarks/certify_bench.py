@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from planner.camera import Camera  # noqa: E402
 from planner.pipeline import ReadOptions, read_layout  # noqa: E402
 from planner.verify import certify as ce  # noqa: E402
-from planner.verify import certify_box as cb  # noqa: E402
+from planner.verify import certify_witness as cw  # noqa: E402
 from planner.verify.envelope import envelope  # noqa: E402
 from planner.verify.proof import possible_windows  # noqa: E402
 
@@ -73,7 +73,7 @@ def main() -> None:
         shift *= d * rng.uniform(0, 1, (len(xy), 1)) / np.linalg.norm(shift, axis=1, keepdims=True)
         box = np.array([x0, x0 + tile_m, y0, y0 + tile_m, env.near_m, env.far_m, 0.0, env.tilt_rad, 0, 2 * math.pi])
         buf = np.empty((20_008, 3), dtype=np.int64)
-        k = cb.box_witnesses(box, xy + shift, radii, view, min(20_000, args.poses - batch), batch, buf,
+        k = cw.box_witnesses(box, xy + shift, radii, view, min(20_000, args.poses - batch), batch, buf,
                              np.empty(0, dtype=np.int64), d)
         found |= set(map(tuple, buf[:k].tolist()))
     kept = set(map(tuple, cert.triangles.tolist()))

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from planner.camera import Camera
 from planner.verify import certify_box as cb
+from planner.verify import certify_witness as cw
 from planner.verify.envelope import Envelope, envelope
 from planner.verify.window_set import SAME_HEIGHT_M
 
@@ -113,7 +114,7 @@ def certify_tile(tile: np.ndarray, xy: np.ndarray, radii: np.ndarray, cand: set[
     buf = np.empty((max(SEED_POSES, WITNESSES) + 8, 3), dtype=np.int64)
 
     def learn(box: np.ndarray, count: int, s: int, favour: tuple[int, ...] = ()) -> None:
-        k = cb.box_witnesses(box, xy, radii, view, count, s, buf, np.array(favour, dtype=np.int64), d)
+        k = cw.box_witnesses(box, xy, radii, view, count, s, buf, np.array(favour, dtype=np.int64), d)
         known.update(t for t in _triples(buf[:k]) if t in cand)
 
     learn(root, SEED_POSES, seed)

@@ -13,7 +13,7 @@ the disc is wholly inside the view rectangle ``|x| <= A, |y| <= B`` iff for each
 camera and that side has the disc on its inner side: ``g·w + r |hor(g)| <= 0`` (``g = (u, -A)``, ``w`` the
 centre in the camera frame, ``hor`` the horizontal part of ``g`` in the site). Bounding ``|hor(g)|`` above and
 below over the box gives, per LED, the rolls at which it is **surely** seen and those at which it **may** be
-seen: unions of at most four arcs each, in closed form (:func:`_g_arcs`).
+seen: in each of 16 roll sectors, at most four arcs, in closed form (:mod:`planner.verify.certify_roll`).
 """
 
 from __future__ import annotations
@@ -23,77 +23,24 @@ import math
 import numpy as np
 from numba import njit
 
-TWO_PI = 2.0 * math.pi
-ARC_EPS = 1e-9
-"""Sure arcs are shrunk and possible arcs grown by this much [rad], against rounding."""
+from planner.verify.certify_roll import (
+    ARC_EPS,
+    ARCS,
+    FULL,
+    PIECES,
+    SECTORS,
+    TWO_PI,
+    cos_limit,
+    cos_range,
+    cut_arcs,
+    gamma_arcs,
+    merge_arcs,
+    on_arcs,
+    side_margins,
+)
+
 REL_EPS = 1e-9
 """Relative slack on every ray-angle bound, against rounding."""
-FULL = -1
-"""Arc count meaning the whole circle."""
-
-
-@njit(cache=True)
-def _cut(pieces: np.ndarray, n: int, s2: float, e2: float, tmp: np.ndarray) -> int:
-    """Intersect the arcs ``pieces[:n]`` (each ``[s, e]``, ``e - s <= 2π``) with the arc ``[s2, e2]``, in place."""
-    k = 0
-    for j in range(n):
-        s, e = pieces[j, 0], pieces[j, 1]
-        a = s2 - TWO_PI * math.floor((s2 - s) / TWO_PI)  # s2's turn starting in [s, s + 2π)
-        b = a + (e2 - s2)
-        for lo, hi in ((max(s, a - TWO_PI), min(e, b - TWO_PI)), (max(s, a), min(e, b))):
-            if lo <= hi and k < len(tmp):
-                tmp[k, 0], tmp[k, 1] = lo, hi
-                k += 1
-    pieces[:k] = tmp[:k]
-    return k
-
-
-@njit(cache=True)
-def _gamma_arcs(limits: np.ndarray, pieces: np.ndarray, tmp: np.ndarray) -> int:
-    """Arcs of ``γ`` (into ``pieces``) where ``cos γ <= l0``, ``-cos γ <= l1``, ``sin γ <= l2``, ``-sin γ <= l3``:
-    their number, or FULL. Each condition alone is one arc, ``cos(γ - c) <= l`` for ``c`` = 0, π, π/2, -π/2."""
-    n = -1
-    for j in range(4):
-        lim = limits[j]
-        if lim >= 1.0:
-            continue
-        if lim < -1.0:
-            return 0
-        g = math.acos(lim)
-        c = (0.0, math.pi, 0.5 * math.pi, -0.5 * math.pi)[j]
-        if n < 0:
-            pieces[0, 0], pieces[0, 1] = c + g, c + TWO_PI - g
-            n = 1
-        else:
-            n = _cut(pieces, n, c + g, c + TWO_PI - g, tmp)
-        if n == 0:
-            return 0
-    return FULL if n < 0 else n
-
-
-@njit(cache=True)
-def _limit(num: float, t_lo: float, t_hi: float, sure: bool) -> float:
-    """Bound on ``cos`` from ``t cos <= num`` for ``t in [t_lo, t_hi]``: for every such ``t`` (``sure``) or for some."""
-    if num >= 0.0:
-        t = t_hi if sure else t_lo
-    else:
-        t = t_lo if sure else t_hi
-    if t <= 0.0:
-        return math.inf if num >= 0.0 else -math.inf
-    return num / t
-
-
-@njit(cache=True)
-def _cos_range(d0: float, d1: float) -> tuple[float, float]:
-    """Least and greatest ``cos`` over ``[d0, d1]`` [rad]."""
-    if d1 - d0 >= TWO_PI:
-        return -1.0, 1.0
-    lo, hi = min(math.cos(d0), math.cos(d1)), max(math.cos(d0), math.cos(d1))
-    if TWO_PI * math.ceil(d0 / TWO_PI) <= d1:
-        hi = 1.0
-    if math.pi + TWO_PI * math.ceil((d0 - math.pi) / TWO_PI) <= d1:
-        lo = -1.0
-    return lo, hi
 
 
 @njit(cache=True)
@@ -130,14 +77,6 @@ def _tan_angle(v: float, big_l: float, p: float) -> float:
     return v * math.sqrt(max(1.0 - p * p, 0.0)) / (big_l + v * p)
 
 
-SECTORS = 16
-"""Roll sectors over which the disc's margin at each image side is bounded separately."""
-PIECES = 4
-"""Most arcs of ``γ`` where an LED is seen: four conditions, each one arc, meet in at most four."""
-ARCS = SECTORS * 2 * PIECES
-"""Room for an LED's arcs of roll: each piece of ``γ`` gives one arc of roll, cut by its sector into at most two."""
-
-
 SLICES = 8
 """Slices of the disc of centres (by direction from the axis point) whose ray angles are bounded separately."""
 
@@ -156,42 +95,12 @@ def _disc_range(v0: float, rv: float, base0: float, base1: float, dang: float, s
         near = 0.0 if w0 <= 0.0 <= w1 else min(abs(w0), abs(w1))
         root = math.sqrt(max(rv * rv - (v0 * math.sin(near)) ** 2, 0.0))
         v_lo, v_hi = max(v0 * math.cos(near) - root, 0.0), v0 * math.cos(near) + root
-        c_lo, c_hi = _cos_range(base0 + w0, base1 + w1)
+        c_lo, c_hi = cos_range(base0 + w0, base1 + w1)
         p_lo, p_hi = min(c_lo * s0, c_lo * s1), max(c_hi * s0, c_hi * s1)
         lo = min(lo, _tan_angle(v_lo, big_l1, p_lo), _tan_angle(v_lo, big_l1, p_hi))
         pstar = min(max(-v_hi / big_l0, p_lo), p_hi)
         hi = max(hi, _tan_angle(v_hi, big_l0, pstar))
     return lo * (1.0 - REL_EPS), hi * (1.0 + REL_EPS)
-
-
-@njit(cache=True)
-def _margins(box: np.ndarray, view: np.ndarray) -> np.ndarray:
-    """``|hor(g)|`` bounds per roll sector and image side (SECTORS, 2, 4): [k, 0] the largest (sure seeing, the
-    inner half-sides), [k, 1] the least (possible seeing, the outer ones). ``|hor g|^2 = 1 + K^2 - (v·g)^2`` with
-    ``v·g = -(n_x sin τ + K cos τ)``, ``n_x`` the side's normal along the tilt, a cosine of the roll."""
-    tau0, tau1, phi0, phi1 = box[6], box[7], box[8], box[9]
-    s0, s1, c0, c1 = math.sin(tau0), math.sin(tau1), math.cos(tau1), math.cos(tau0)
-    out = np.empty((SECTORS, 2, 4))
-    w = TWO_PI / SECTORS
-    for k in range(SECTORS):
-        lo, hi = k * w - phi1, (k + 1) * w - phi0  # ψ' = ψ'' - φ
-        co_lo, co_hi = _cos_range(lo, hi)
-        si_lo, si_hi = _cos_range(lo - 0.5 * math.pi, hi - 0.5 * math.pi)
-        normals = ((co_lo, co_hi), (-co_hi, -co_lo), (-si_hi, -si_lo), (si_lo, si_hi))
-        for side in range(4):
-            n0, n1 = normals[side]
-            ns_lo = min(n0 * s0, n0 * s1, n1 * s0, n1 * s1)
-            ns_hi = max(n0 * s0, n0 * s1, n1 * s0, n1 * s1)
-            for which in range(2):
-                big_k = view[side // 2 + 2 * which]
-                e_lo, e_hi = ns_lo + big_k * c0, ns_hi + big_k * c1
-                least = 0.0 if e_lo <= 0.0 <= e_hi else min(abs(e_lo), abs(e_hi))
-                most = max(abs(e_lo), abs(e_hi))
-                if which == 0:
-                    out[k, 0, side] = math.sqrt(1.0 + big_k * big_k - least * least)
-                else:
-                    out[k, 1, side] = math.sqrt(max(0.0, 1.0 + big_k * big_k - most * most))
-    return out
 
 
 @njit(cache=True)
@@ -212,7 +121,7 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
     s0, s1 = math.sin(tau0), math.sin(tau1)
     big_l0, big_l1 = h0 / math.cos(tau0), h1 / math.cos(tau1)
     wz_min = view[4]
-    kappa = _margins(box, view)
+    kappa = side_margins(box, view)
     pieces, tmp, lim = np.empty((PIECES, 2)), np.empty((PIECES, 2)), np.empty(4)
     one, tmp2 = np.empty((2, 2)), np.empty((2, 2))
     n_led = len(xy)
@@ -238,7 +147,7 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
             ang0 = math.atan2(vy, vx)
             dang = math.asin(rv / v0)
             d0, d1 = ang0 - dang - phi1, ang0 + dang - phi0
-            c_lo, c_hi = _cos_range(d0, d1)
+            c_lo, c_hi = cos_range(d0, d1)
             k_lo, k_hi = _corr_range(d0, d1, tau0, tau1)
             b_lo, b_hi = ang0 - dang + k_lo, ang0 + dang + k_hi
             full_dir = b_hi - b_lo >= TWO_PI
@@ -264,13 +173,13 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
         # every roll at once, with the margins of the worst and best sector: most LEDs are decided here
         if can[i]:
             for side in range(4):
-                lim[side] = _limit(view[side // 2] - r * k_sure[side] / wz_lo, t_lo[i], t_hi[i], True)
-            if _gamma_arcs(lim, pieces, tmp) == FULL:
+                lim[side] = cos_limit(view[side // 2] - r * k_sure[side] / wz_lo, t_lo[i], t_hi[i], True)
+            if gamma_arcs(lim, pieces, tmp) == FULL:
                 seen_n[i], maybe_n[i] = FULL, FULL
                 continue
         for side in range(4):
-            lim[side] = _limit(view[side // 2 + 2] - r * k_may[side] / wz_hi, t_lo[i], t_hi[i], False)
-        if _gamma_arcs(lim, pieces, tmp) == 0:
+            lim[side] = cos_limit(view[side // 2 + 2] - r * k_may[side] / wz_hi, t_lo[i], t_hi[i], False)
+        if gamma_arcs(lim, pieces, tmp) == 0:
             t_lo[i] = math.inf  # never seen: out of every window
             continue
         todo[i] = True
@@ -290,8 +199,8 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
                 for side in range(4):
                     half = view[side // 2 + 2 * which]
                     num = half - r * kappa[k, which, side] / (wz_lo if sure else wz_hi)
-                    lim[side] = _limit(num, t_lo[i], t_hi[i], sure)
-                n = _gamma_arcs(lim, pieces, tmp)
+                    lim[side] = cos_limit(num, t_lo[i], t_hi[i], sure)
+                n = gamma_arcs(lim, pieces, tmp)
                 arcs, count = (seen, seen_n) if sure else (maybe, maybe_n)
                 if n == FULL or (not sure and n > 0 and full_dir):
                     arcs[i, count[i], 0], arcs[i, count[i], 1] = p0, p1
@@ -313,49 +222,18 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
                     if b - a >= TWO_PI:
                         a, b = p0, p1
                     one[0, 0], one[0, 1] = p0, p1
-                    m = _cut(one, 1, a, b, tmp2)
+                    m = cut_arcs(one, 1, a, b, tmp2)
                     for q in range(m):  # room: ARCS per LED
                         arcs[i, count[i], 0], arcs[i, count[i], 1] = one[q, 0], one[q, 1]
                         count[i] += 1
         if all_seen:
             seen_n[i] = FULL
         elif seen_n[i] > 1:
-            seen_n[i] = _merge(seen, i, seen_n[i])
+            seen_n[i] = merge_arcs(seen, i, seen_n[i])
         if all_maybe:
             maybe_n[i] = FULL
         elif maybe_n[i] > 1:
-            maybe_n[i] = _merge(maybe, i, maybe_n[i])
-
-
-@njit(cache=True)
-def _merge(arcs: np.ndarray, i: int, n: int) -> int:
-    """Join LED ``i``'s arcs that overlap or touch (within ARC_EPS / 10, sure arcs are shrunk by more): fewer
-    ends to sweep. Arcs are put in ``[0, 2π)`` by their start first."""
-    for j in range(n):
-        shift = TWO_PI * math.floor(arcs[i, j, 0] / TWO_PI)
-        arcs[i, j, 0] -= shift
-        arcs[i, j, 1] -= shift
-    order = np.argsort(arcs[i, :n, 0])
-    merged = arcs[i, order[:n]].copy()
-    k = 0
-    for j in range(1, n):
-        if merged[j, 0] <= merged[k, 1] + 0.1 * ARC_EPS:
-            merged[k, 1] = max(merged[k, 1], merged[j, 1])
-        else:
-            k += 1
-            merged[k] = merged[j]
-    arcs[i, :k + 1] = merged[:k + 1]
-    return k + 1
-
-
-@njit(cache=True)
-def _on(psi: float, arcs: np.ndarray, i: int, n: int) -> bool:
-    if n == FULL:
-        return True
-    for j in range(n):
-        if (psi - arcs[i, j, 0]) % TWO_PI <= arcs[i, j, 1] - arcs[i, j, 0]:
-            return True
-    return False
+            maybe_n[i] = merge_arcs(maybe, i, maybe_n[i])
 
 
 @njit(cache=True)
@@ -418,11 +296,11 @@ def box_windows(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.nda
     cand = np.empty(m, np.int64)
     for psi in rolls:
         for a in range(m):
-            sure[a] = _on(psi, seen, rel[a], seen_n[rel[a]])
+            sure[a] = on_arcs(psi, seen, rel[a], seen_n[rel[a]])
         c = 0
         for a in range(m):
             i = rel[a]
-            if not (sure[a] or _on(psi, maybe, i, maybe_n[i])):
+            if not (sure[a] or on_arcs(psi, maybe, i, maybe_n[i])):
                 continue
             nearer = 0
             for b in range(m):
@@ -457,91 +335,3 @@ def box_windows(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.nda
                         out[count, 0], out[count, 1], out[count, 2] = t0, t1, t2
                         count += 1
     return count
-
-
-@njit(cache=True)
-def pose_window(pose: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndarray) -> tuple[int, int, int]:
-    """The exact window (local indices ascending; -1s when fewer than three are wholly seen) at ``pose`` =
-    (qx, qy, h, τ, φ, ψ''), roll ``ψ''`` measured as the image's ``x`` axis from the plan's (in frame ``F``
-    turned by ``-φ``); ``view`` = (x_lo, x_hi, y_lo, y_hi) the view rectangle (normalised)."""
-    qx, qy, h, tau, phi, psi = pose[0], pose[1], pose[2], pose[3], pose[4], pose[5]
-    ct, st, cf, sf = math.cos(tau), math.sin(tau), math.cos(phi), math.sin(phi)
-    rp = psi - phi
-    ux, uy = math.cos(rp), math.sin(rp)
-    # sides: normal g = (n, -k) for x <= k along n; v = site vertical in F = (-sin τ, 0, cos τ)
-    gx = (ux, -ux, -uy, uy)
-    gy = (uy, -uy, ux, -ux)
-    gk = (view[1], -view[0], view[3], -view[2])
-    best = np.full(3, math.inf)
-    idx = np.full(3, -1, np.int64)
-    big_l = h / ct
-    for i in range(len(xy)):
-        dx, dy = xy[i, 0] - qx, xy[i, 1] - qy
-        al, be = dx * cf + dy * sf, -dx * sf + dy * cf
-        wx, wy, wz = al * ct, be, big_l + al * st
-        r = radii[i]
-        if wz - r * st <= 1e-9:
-            continue
-        inside = True
-        for s in range(4):
-            vg = -st * gx[s] - gk[s] * ct
-            norm2 = gx[s] * gx[s] + gy[s] * gy[s] + gk[s] * gk[s]
-            if gx[s] * wx + gy[s] * wy - gk[s] * wz + r * math.sqrt(max(norm2 - vg * vg, 0.0)) > 0.0:
-                inside = False
-                break
-        if not inside:
-            continue
-        t = (wx * wx + wy * wy) / (wz * wz)
-        if t < best[2]:
-            k = 2
-            while k > 0 and best[k - 1] > t:
-                best[k], idx[k] = best[k - 1], idx[k - 1]
-                k -= 1
-            best[k], idx[k] = t, i
-    if idx[2] < 0:
-        return -1, -1, -1
-    srt = np.sort(idx)
-    return srt[0], srt[1], srt[2]
-
-
-@njit(cache=True)
-def _tan2(pose: np.ndarray, x: float, y: float) -> float:
-    """``tan^2 θ`` of a ceiling point at ``pose`` (qx, qy, h, τ, φ)."""
-    dx, dy = x - pose[0], y - pose[1]
-    al = dx * math.cos(pose[4]) + dy * math.sin(pose[4])
-    be = -dx * math.sin(pose[4]) + dy * math.cos(pose[4])
-    wz = pose[2] / math.cos(pose[3]) + al * math.sin(pose[3])
-    return ((al * math.cos(pose[3])) ** 2 + be * be) / (wz * wz)
-
-
-@njit(cache=True)
-def box_witnesses(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndarray, count: int, seed: int,
-                  out: np.ndarray, favour: np.ndarray, d: float) -> int:
-    """Exact windows (local indices ascending, into ``out`` (>= 8 + count, 3)) at the box's centre at 8 rolls and
-    at ``count`` poses drawn uniformly in ``box`` (any roll): real windows, never a bound. With ``favour`` (local
-    indices), of the installation that moves those LEDs ``d`` towards the box's axis point and every other
-    LED ``d`` away from it (an installation within tolerance that favours them as the window)."""
-    np.random.seed(seed)
-    site = xy.copy()
-    if len(favour):
-        centre = np.array([0.5 * (box[2 * a] + box[2 * a + 1]) for a in range(5)])
-        for i in range(len(xy)):  # along the gradient of tan θ at the box's centre
-            gx = _tan2(centre, xy[i, 0] + 1e-6, xy[i, 1]) - _tan2(centre, xy[i, 0] - 1e-6, xy[i, 1])
-            gy = _tan2(centre, xy[i, 0], xy[i, 1] + 1e-6) - _tan2(centre, xy[i, 0], xy[i, 1] - 1e-6)
-            norm = math.hypot(gx, gy)
-            if norm > 0.0:
-                step = -d if (i == favour[0] or i == favour[1] or i == favour[2]) else d
-                site[i, 0] += step * gx / norm * (1.0 - 1e-12)
-                site[i, 1] += step * gy / norm * (1.0 - 1e-12)
-    pose = np.empty(6)
-    k = 0
-    for j in range(8 + count):
-        for a in range(5):
-            lo, hi = box[2 * a], box[2 * a + 1]
-            pose[a] = 0.5 * (lo + hi) if j < 8 else lo + (hi - lo) * np.random.random()
-        pose[5] = TWO_PI * (j / 8.0 if j < 8 else np.random.random())
-        a0, a1, a2 = pose_window(pose, site, radii, view)
-        if a0 >= 0:
-            out[k, 0], out[k, 1], out[k, 2] = a0, a1, a2
-            k += 1
-    return k

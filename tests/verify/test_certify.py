@@ -10,6 +10,7 @@ from conftest import exact_nearest, grid_xy, poisson_xy
 from planner.camera import Camera, Poses
 from planner.verify import certify as ce
 from planner.verify import certify_box as cb
+from planner.verify import certify_witness as cw
 from planner.verify.envelope import envelope
 from planner.verify.proof import possible_windows
 
@@ -52,7 +53,7 @@ def test_the_exact_window_of_a_pose_is_the_camera_models():
     phi, roll = rng.uniform(0, 2 * np.pi, n), rng.uniform(0, 2 * np.pi, n)
     poses = _poses(q, h, tau, phi, roll)
     ref = exact_nearest(xyz, radii, CAM, poses, 3)
-    mine = np.array([cb.pose_window(np.array([*q[i], h[i], tau[i], phi[i], roll[i]]), xy, radii, view)
+    mine = np.array([cw.pose_window(np.array([*q[i], h[i], tau[i], phi[i], roll[i]]), xy, radii, view)
                      for i in range(n)])
     assert len(ref) > 500
     assert np.array_equal(ref, mine[mine[:, 0] >= 0])
@@ -103,7 +104,7 @@ def test_every_window_of_a_pose_in_a_box_is_among_the_box_windows(layout):
                 q = np.array([box[0] + box[1], box[2] + box[3]]) / 2
                 away = (xy - q) / np.maximum(np.linalg.norm(xy - q, axis=1, keepdims=True), 1e-9)
                 site = xy + D * np.where(rng.random(len(xy)) < 0.5, -1, 1)[:, None] * away * (1 - 1e-9)
-            window = cb.pose_window(_pose_in(box, rng, face=k % 2 == 1), site, radii, view)
+            window = cw.pose_window(_pose_in(box, rng, face=k % 2 == 1), site, radii, view)
             if window[0] >= 0:
                 checked += 1
                 assert tuple(window) in allowed, (box.tolist(), window, sorted(allowed))
