@@ -46,6 +46,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--extra-timeout-ms", type=cli.at_most(10_000.0, strict=False), default=0.0, metavar="MS",
                    help="added to every request's timeout: for USB adapters with a latency timer, radio links or "
                    "emulated drivers on a busy machine (default 0, at most 10000)")
+    p.add_argument("--driver-deadline-s", type=cli.at_most(3600.0), default=120.0, metavar="S",
+                   help="time one driver may take, retries included, before it is reported failed and the batch "
+                   "goes on (default 120, at most 3600)")
     p.add_argument("--bus", action="store_true", help="batch mode: all drivers on one multi-drop bus, no prompts")
     p.add_argument("--bus-map", metavar="CSV", help="with --bus: 'name,address' rows (default: plan order, from 1)")
     p.add_argument("--key-file", metavar="FILE", help="site key, hex or raw bytes (or env VLP_SITE_KEY, hex)")
@@ -83,17 +86,29 @@ def open_port(url: str, baud: int):
     try:
         return serial.serial_for_url(url, baudrate=baud, timeout=0.1, exclusive=True)
     except (serial.SerialException, ValueError, OSError) as exc:
-        text = str(exc)
-        if "lock" in text.lower() or "busy" in text.lower():
+        text = str(exc).replace(url, shown_port(url))  # pyserial may quote the URL, key and all
+        if not isinstance(exc, protocol_sim.SimUrlError) and ("lock" in text.lower() or "busy" in text.lower()):
             raise UsageError(f"--port {shown_port(url)}: busy: another program holds it; close it and retry") from None
         raise UsageError(f"--port {shown_port(url)}: cannot open ({text}); serial ports here: {_ports_text()}") from None
 
 
+SHOWN_PARAMETERS = ("drivers", "first", "prefix", "flash", "faults", "paced", "slot_size", "max_block",
+                    "block_write_us", "protocol")
+"""``sim://`` parameters whose values are shown; any other (``key``, a misspelt ``kye``) shows as ``<hidden>``."""
+
+
 def shown_port(url: str) -> str:
-    """``url`` as messages, the journal and ``--json`` show it: a ``sim://`` URL's key is never written out."""
+    """``url`` as messages, the journal and ``--json`` show it: a ``sim://`` URL's key is never written out, nor
+    the value of any parameter but the known harmless ones (a misspelt ``key`` stays hidden)."""
     head, sep, query = url.partition("?")
-    items = [("key=<hidden>" if urllib.parse.unquote_plus(item.partition("=")[0]).strip().lower() == "key" else item)
-             for item in query.split("&")]
+    if head.lower().startswith("sim://") and head[6:]:  # a sim:// URL has nothing before its query: a key pasted?
+        head = "sim://<hidden>"
+    items = []
+    for item in query.split("&") if sep else []:
+        name, eq, _ = item.partition("=")
+        plain = urllib.parse.unquote_plus(name).strip().lower()
+        items.append(item if plain in SHOWN_PARAMETERS or not eq else
+                     f"{plain if plain.isidentifier() else '<hidden>'}=<hidden>")
     return head + sep + "&".join(items)
 
 
@@ -215,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
                     continue
             address = where.get(name, ANY_ADDRESS)
             result = flash_driver(link, address, image, key, _versions(journal, e, image, args.image_version),
-                                  verify_only=args.verify_only)
+                                  verify_only=args.verify_only, deadline_s=args.driver_deadline_s)
             journal.record(name, e.id, f"{shown}@{address}" if args.bus else shown, result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
             version = f"version {result.image_version}, " if result.image_version else ""

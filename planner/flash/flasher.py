@@ -23,7 +23,7 @@ from planner.defaults import MAX_IMAGE_VERSION
 from planner.errors import PlannerError
 from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash.keys import driver_key
-from planner.flash.link import Link, LinkError
+from planner.flash.link import MAX_ATTEMPT_S, DeadlineError, Link, LinkError
 from planner.flash.wire import (
     BEGIN_REPLY,
     BEGIN_REQUEST,
@@ -38,6 +38,8 @@ from planner.flash.wire import (
     Command,
     Hello,
     Status,
+    WireError,
+    unpack_reply,
 )
 
 SESSIONS = 3
@@ -48,6 +50,15 @@ ASK_AFTER_FAILURE = 2
 
 FINAL = (Status.AUTH, Status.ROLLBACK, Status.IMAGE, Status.TOO_LARGE)
 """Refusals of the image itself: retrying cannot help."""
+
+DRIVER_DEADLINE_S = 120.0
+"""Default time one driver may take, all sessions and retries included [s] (vlp-flash --driver-deadline-s)."""
+
+ASK_GRACE_S = 2 * MAX_ATTEMPT_S
+"""Time the HELLO after a failure may take once the driver's deadline has passed [s]."""
+
+STALLED_WRITES = 4
+"""WRITE answers in a row that stage nothing new before the transfer is given up (a peer answering "0 bytes")."""
 
 
 def sign_image(image: bytes, key: bytes) -> bytes:
@@ -98,7 +109,7 @@ class _Refused(PlannerError):
 
 
 def _hello(link: Link, address: int) -> Hello:
-    hello = Hello.unpack(link.request(address, Command.HELLO, response_bytes=80).payload)
+    hello = Hello.unpack(link.request(address, Command.HELLO, response_bytes=80).payload)  # bounds checked
     need = CAP_AB_SLOTS | CAP_RESUME | CAP_HMAC
     if hello.protocol != PROTOCOL_VERSION or hello.capabilities & need != need:
         raise LinkError(f"driver {hello.serial} speaks protocol {hello.protocol} with capabilities "
@@ -139,26 +150,32 @@ def _choose_version(hello: Hello, versions: Versions) -> int:
 
 def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int, sha: bytes,
               progress: Callable[[int, int], None] | None) -> None:
-    block_s = hello.block_write_us * 1e-6
-    erase_s = (-(-hello.slot_size // max(hello.max_block, 1)) + 1) * block_s  # BEGIN may erase the whole slot
+    block_s = hello.block_write_us * 1e-6  # HELLO bounds it; the link caps every attempt as well
+    erase_s = (-(-hello.slot_size // hello.max_block) + 1) * block_s  # BEGIN may erase the whole slot
     reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 0), driver_s=erase_s)
-    offset, crc = BEGIN_REPLY.unpack(reply.payload[:BEGIN_REPLY.size])
+    offset, crc = unpack_reply(BEGIN_REPLY, reply.payload, "BEGIN")
     if offset > len(image) or crc != zlib.crc32(image[:offset]):
         reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 1), driver_s=erase_s)
         offset = 0
+    stalled = 0
     while offset < len(image):
         chunk = image[offset:offset + hello.max_block]
         try:
             reply = link.request(address, Command.WRITE, WRITE_HEAD.pack(offset) + chunk, driver_s=block_s)
-            offset = WRITE_REPLY.unpack(reply.payload[:WRITE_REPLY.size])[0]
+            staged = unpack_reply(WRITE_REPLY, reply.payload, "WRITE")[0]
         except LinkError as exc:
             if exc.status != Status.OFFSET:
                 raise
-            offset = exc.detail  # the driver holds fewer (or more) bytes: continue from there
+            staged = exc.detail  # the driver holds fewer (or more) bytes: continue from there
+        stalled = stalled + 1 if staged <= offset else 0
+        if stalled >= STALLED_WRITES:
+            raise LinkError(f"driver {hello.serial} staged nothing new in {stalled} WRITEs at offset {offset} "
+                            f"(it answers {staged} bytes staged): the transfer makes no progress")
+        offset = staged
         if progress:
             progress(min(offset, len(image)), len(image))
     verify = link.request(address, Command.VERIFY, driver_s=block_s)  # the driver hashes what it reads back
-    staged, digest = VERIFY_REPLY.unpack(verify.payload[:VERIFY_REPLY.size])
+    staged, digest = unpack_reply(VERIFY_REPLY, verify.payload, "VERIFY")
     if staged != len(image) or digest != sha:
         raise LinkError(f"driver {hello.serial} read back {staged} bytes hashing to {digest.hex()[:16]}..., "
                         f"not the image ({len(image)} bytes, {sha.hex()[:16]}...)", Status.HASH)
@@ -166,9 +183,30 @@ def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int
 
 
 def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions = Versions(), *,
-                 verify_only: bool = False, progress: Callable[[int, int], None] | None = None) -> FlashResult:
-    """Bring the driver at ``address`` to the plan's ``image`` (unsigned; or, ``verify_only``, check it runs it)."""
+                 verify_only: bool = False, progress: Callable[[int, int], None] | None = None,
+                 deadline_s: float = DRIVER_DEADLINE_S) -> FlashResult:
+    """Bring the driver at ``address`` to the plan's ``image`` (unsigned; or, ``verify_only``, check it runs it)
+    within ``deadline_s`` [s]. Whatever the peer answers, this returns a result: a reply that breaks the
+    protocol, no progress or the deadline fail this driver only, in one line."""
     started = time.perf_counter()
+    result, wrote = FlashResult("failed"), False
+    link.deadline = started + deadline_s
+    try:
+        result, wrote = _sessions(link, address, image, site_key, versions, verify_only, progress, started)
+    finally:
+        link.deadline = None
+    if result.verified:
+        return result
+    link.deadline = time.perf_counter() + ASK_GRACE_S
+    try:
+        return _asked(link, address, image, site_key, result, wrote, verify_only, started)
+    finally:
+        link.deadline = None
+
+
+def _sessions(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions, verify_only: bool,
+              progress: Callable[[int, int], None] | None, started: float) -> tuple[FlashResult, bool]:
+    """Up to :data:`SESSIONS` attempts: the result (verified, or the last failure) and whether bytes were sent."""
     result, wrote = FlashResult("failed"), False
     for _ in range(SESSIONS):
         try:
@@ -179,7 +217,7 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
             if _runs_plan(hello, image, key):
                 status = "verified" if verify_only else "flashed" if wrote else "current"
                 return replace(result, status=status, image_sha256=result.active_sha256, verified=True, message="",
-                               image_version=hello.active_version, seconds=time.perf_counter() - started)
+                               image_version=hello.active_version, seconds=time.perf_counter() - started), wrote
             if verify_only:
                 result = replace(result, message="the driver holds another image")
                 break
@@ -197,6 +235,14 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
         except _Refused as exc:
             result = replace(result, message=str(exc))
             break
+        except WireError as exc:  # a reply that breaks the protocol: retrying the same peer cannot help
+            result = replace(result, message=f"driver {_who(result, address)} answered outside the protocol: {exc}")
+            break
+        except DeadlineError:
+            result = replace(result, message=f"driver {_who(result, address)} gave no result within its "
+                                             f"{link.deadline - started if link.deadline else 0:.0f} s deadline"
+                                             + (f" (last: {result.message})" if result.message else ""))
+            break
         except LinkError as exc:
             message = str(exc)
             if exc.status == Status.ROLLBACK:
@@ -205,7 +251,11 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
             result = replace(result, message=message)
             if exc.status in FINAL:
                 break
-    return _asked(link, address, image, site_key, result, wrote, verify_only, started)
+    return result, wrote
+
+
+def _who(result: FlashResult, address: int) -> str:
+    return result.serial or ("(any)" if address == 0xFFFF else f"at address {address}")
 
 
 def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: FlashResult, wrote: bool,
@@ -217,7 +267,7 @@ def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: Flas
             hello = _hello(link, address)
             held = _runs_plan(hello, image, _key(site_key, hello.serial))
             break
-        except (LinkError, _Refused):
+        except (LinkError, WireError, _Refused):
             continue
     else:  # silent: what it runs is unknown (it may have taken the image before it fell silent)
         unknown = "; it did not answer afterwards, so what it runs is unknown" if wrote else ""

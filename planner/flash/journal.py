@@ -26,6 +26,8 @@ from planner.errors import InputError, UsageError
 from planner.flash.flasher import FlashResult
 
 FORMAT = "vlp-asbuilt/1"
+MAX_BYTES = 64 << 20
+"""Most bytes of a journal read (65,534 luminaires at about 700 bytes each fit)."""
 HOLDS_IMAGE = ("flashed", "current", "verified")
 """Statuses meaning the driver runs this plan's image (with ``verified`` true)."""
 
@@ -77,7 +79,7 @@ class Journal:
         if not self.path.exists():
             return {}
         try:
-            doc = load_json(self.path, "journal")
+            doc = load_json(self.path, "journal", max_bytes=MAX_BYTES)
         except InputError as exc:
             raise InputError(f"{exc}; move it away to start a new one") from None
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:

@@ -16,6 +16,8 @@ DRIVER_KEY_LABEL = b"VLP driver key v1\x00"
 DRIVER_KEY_BYTES = 32
 SITE_KEY_BYTES = (16, 64)
 """Fewest and most bytes of a site key (docs/protocol.md)."""
+KEY_FILE_MAX_BYTES = 4096
+"""Most bytes read from a key file: 64 bytes in hex with any whitespace fit many times over."""
 
 
 def site_key_from(data: bytes, *, raw: bool = True) -> bytes:

@@ -17,6 +17,8 @@ from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status,
 
 RETRIES = 4
 BASE_TIMEOUT_S = 0.020
+MAX_ATTEMPT_S = 10.0
+"""Ceiling of one attempt's timeout [s], whatever a driver's HELLO claims (``--extra-timeout-ms`` comes on top)."""
 
 
 class LinkError(PlannerError):
@@ -26,6 +28,10 @@ class LinkError(PlannerError):
         super().__init__(message)
         self.status = status
         self.detail = detail
+
+
+class DeadlineError(LinkError):
+    """The driver's deadline (:attr:`Link.deadline`) passed: no more requests to it."""
 
 
 class PortLost(UsageError):
@@ -53,6 +59,7 @@ class Link:
         self.baud = baud
         self.retries = retries
         self.extra_timeout_s = extra_timeout_s  # added to every attempt: adapters with latency, emulated drivers
+        self.deadline: float | None = None  # time.perf_counter() after which no request starts or waits
         self._seqs: dict[int, int] = {}
         self.seq = 0
         self.stats = LinkStats()
@@ -63,8 +70,10 @@ class Link:
         return n_bytes * 10 / self.baud
 
     def timeout_s(self, request_bytes: int, response_bytes: int, driver_s: float = 0.0) -> float:
-        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work (+ ``extra_timeout_s``)."""
-        return BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s + self.extra_timeout_s
+        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work, at most
+        :data:`MAX_ATTEMPT_S` (+ ``extra_timeout_s``)."""
+        protocol_s = BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s
+        return min(protocol_s, MAX_ATTEMPT_S) + self.extra_timeout_s
 
     def request(self, address: int, command: Command, payload: bytes = b"", *, response_bytes: int = 80,
                 driver_s: float = 0.0) -> Packet:
@@ -79,6 +88,8 @@ class Link:
         self.stats.by_command[command.name] = self.stats.by_command.get(command.name, 0) + 1
         try:
             for attempt in range(self.retries + 1):
+                if self.deadline is not None and time.perf_counter() >= self.deadline:
+                    raise DeadlineError(f"driver {_addr(address)} passed its deadline during {command.name}")
                 if attempt:
                     self.stats.retries += 1
                 try:
@@ -103,6 +114,8 @@ class Link:
 
     def _await(self, address: int, command: Command, timeout: float) -> Packet | None:
         deadline = time.perf_counter() + timeout
+        if self.deadline is not None:
+            deadline = min(deadline, self.deadline)
         while True:
             left = deadline - time.perf_counter()
             if left <= 0:

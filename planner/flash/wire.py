@@ -55,6 +55,10 @@ class WireError(PlannerError):
     """A frame that cannot be decoded (damaged in transit): the receiver drops it."""
 
 
+class ReplyError(WireError):
+    """A well-framed reply whose payload breaks the protocol: too short or long, a field out of range."""
+
+
 @dataclass(frozen=True)
 class Packet:
     address: int
@@ -131,6 +135,21 @@ COMMIT_REPLY = struct.Struct("<BI")  # active slot, active image version
 ERROR_HEAD = struct.Struct("<BI")  # status, detail; followed by an ASCII message
 
 
+MAX_BLOCK_RANGE = (16, 1016)
+"""Fewest and most data bytes one WRITE may carry (HELLO ``max_block``)."""
+MAX_SLOT_BYTES = 1 << 20
+"""Largest slot a HELLO may report [bytes]: a configuration image is a few hundred bytes."""
+MAX_BLOCK_WRITE_US = 2_000_000
+"""Longest block programming time a HELLO may report [us] (the reference AVR driver: 435,200)."""
+
+
+def unpack_reply(shape: struct.Struct, payload: bytes, what: str) -> tuple:
+    """The fields of a reply that must be exactly ``shape``; :class:`ReplyError` otherwise."""
+    if len(payload) != shape.size:
+        raise ReplyError(f"{what} reply of {len(payload)} bytes, the protocol's is {shape.size}")
+    return shape.unpack(payload)
+
+
 @dataclass(frozen=True)
 class Hello:
     protocol: int
@@ -151,9 +170,22 @@ class Hello:
 
     @classmethod
     def unpack(cls, payload: bytes) -> Hello:
-        f = list(HELLO_REPLY.unpack(payload[:HELLO_REPLY.size]))
-        f[6] = f[6].rstrip(b"\x00").decode("ascii", "replace")
-        return cls(*f)
+        """A HELLO reply, every field checked against the protocol's bounds; :class:`ReplyError` if one is
+        out of range (so no hostile value reaches a timeout, a loop or a message)."""
+        f = list(unpack_reply(HELLO_REPLY, payload, "HELLO"))
+        raw = f[6].rstrip(b"\x00")
+        if not raw or b"\x00" in raw or not all(0x21 <= c <= 0x7E for c in raw):
+            raise ReplyError(f"HELLO serial {raw[:16]!r} is not 1 to 16 printable ASCII characters")
+        f[6] = raw.decode("ascii")
+        hello = cls(*f)
+        low, high = MAX_BLOCK_RANGE
+        for name, value, bounds in (("max_block", hello.max_block, MAX_BLOCK_RANGE),
+                                    ("slot_size", hello.slot_size, (low, MAX_SLOT_BYTES)),
+                                    ("block_write_us", hello.block_write_us, (0, MAX_BLOCK_WRITE_US)),
+                                    ("active slot", hello.active_slot, (0, 2))):
+            if not bounds[0] <= value <= bounds[1]:
+                raise ReplyError(f"HELLO {name} {value:,} is outside the protocol's {bounds[0]:,}..{bounds[1]:,}")
+        return hello
 
 
 def error_payload(status: Status, detail: int = 0, message: str = "") -> bytes:
@@ -161,5 +193,8 @@ def error_payload(status: Status, detail: int = 0, message: str = "") -> bytes:
 
 
 def parse_error(payload: bytes) -> tuple[int, int, str]:
-    status, detail = ERROR_HEAD.unpack(payload[:ERROR_HEAD.size])
-    return status, detail, payload[ERROR_HEAD.size:].decode("ascii", "replace")
+    """Status, detail and message of an error reply; :class:`ReplyError` if it is shorter than its head. The
+    message keeps printable ASCII only (at most 200 characters): a peer cannot forge or split a line with it."""
+    status, detail = unpack_reply(ERROR_HEAD, payload[:ERROR_HEAD.size], "error")
+    text = payload[ERROR_HEAD.size:ERROR_HEAD.size + 200].decode("ascii", "replace")
+    return status, detail, "".join(c if c.isascii() and c.isprintable() else "?" for c in text)

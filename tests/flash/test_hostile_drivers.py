@@ -1,0 +1,188 @@
+"""Hostile drivers (issue 36): peers that speak the protocol to stall, crash or fool vlp-flash, on a real
+pseudo-terminal (the installed vlp-flash against a line served by planner.cli.driver_sim.serve) and in
+process. Each attack fails that driver with one clear line; the batch goes on; the journal is true."""
+
+import json
+import os
+import subprocess
+import sys
+import threading
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+from planner.cli.driver_sim import serve
+from planner.cli.flash import console_main
+from planner.firmware.image import config_image
+from planner.flash.flasher import flash_driver
+from planner.flash.link import MAX_ATTEMPT_S, Link
+from planner.flash.sim import protocol_sim
+from planner.flash.sim.bus import Faults, SimBus
+from planner.flash.sim.driver import SimulatedDriver, _Refuse
+from planner.flash.wire import WRITE_REPLY, Command, Hello, Status
+
+BIN = Path(sys.executable).parent  # the installed console scripts
+KEY = bytes(range(32))
+NAMES = ["R01C01", "R01C02", "R01C03"]
+PLAN_IMAGE = config_image("L1", 5, "0111000110011010", 12600.0, "0123456789abcdef")
+
+
+class Hostile(SimulatedDriver):
+    """A driver that follows the protocol except for one ``behaviour`` (docs/protocol.md has the rules)."""
+
+    def __init__(self, address: int, behaviour: str, serial: str | None = None, **kw):
+        super().__init__(address, serial or f"SIM-{address:06d}", KEY, **kw)
+        self.behaviour = behaviour
+
+    def hello(self) -> Hello:
+        h, b = super().hello(), self.behaviour
+        wrong = {"max-block-0": {"max_block": 0}, "slow-blocks": {"block_write_us": 2**32 - 1},
+                 "huge-timing": {"max_block": 0xFFFF, "slot_size": 2**32 - 1, "block_write_us": 2**32 - 1},
+                 "control-serial": {"serial": "SIM\n000002"}}.get(b, {})
+        return replace(h, **wrong)
+
+    def _execute(self, command: int, payload: bytes) -> bytes:
+        b = self.behaviour
+        if command == Command.HELLO and b == "short-hello":
+            return b"\x01"
+        if command == Command.WRITE and b == "zero-staged":
+            self._begun_staging()
+            return WRITE_REPLY.pack(0)
+        if command == Command.WRITE and b == "offset-zero":
+            raise _Refuse(Status.OFFSET, 0, "0 bytes staged")
+        if command == Command.BEGIN and b == "short-begin":
+            return b"\x00\x00"
+        return super()._execute(command, payload)
+
+
+ATTACKS = {  # behaviour: what the failed driver's line says
+    "zero-staged": "staged nothing new in 4 WRITEs at offset 0 (it answers 0 bytes staged)",
+    "offset-zero": "staged nothing new in 4 WRITEs at offset 0 (it answers 0 bytes staged)",
+    "max-block-0": "HELLO max_block 0 is outside the protocol's 16..1,016",
+    "slow-blocks": "HELLO block_write_us 4,294,967,295 is outside the protocol's 0..2,000,000",
+    "huge-timing": "HELLO max_block 65,535 is outside the protocol's 16..1,016",
+    "short-hello": "HELLO reply of 1 bytes, the protocol's is",
+    "short-begin": "BEGIN reply of 2 bytes, the protocol's is 8",
+    "control-serial": "is not 1 to 16 printable ASCII characters",
+}
+
+
+def _bus(behaviour: str) -> SimBus:
+    """Three drivers at addresses 1..3; the second is hostile."""
+    return SimBus([SimulatedDriver(1, "SIM-000001", KEY), Hostile(2, behaviour), SimulatedDriver(3, "SIM-000003", KEY)])
+
+
+@pytest.fixture(scope="module")
+def plans(tmp_path_factory) -> Path:
+    from planner.cli.plan import main as plan_main
+
+    base = tmp_path_factory.mktemp("hostile-plans")
+    plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "a"), "--no-map", "--no-report", "--json"])
+    (base / "key").write_text(KEY.hex())
+    return base
+
+
+class PtyLine:
+    """``bus`` served on a real pseudo-terminal by vlp-driver-sim's own loop, in a thread."""
+
+    def __init__(self, bus: SimBus):
+        import tty
+
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        os.set_blocking(self.master, False)
+        self.wake_r, self.wake_w = os.pipe()
+        self.port = os.ttyname(self.slave)
+        self.thread = threading.Thread(target=serve, args=(self.master, bus, self.wake_r), daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        os.write(self.wake_w, b"x")
+        self.thread.join(timeout=5)
+        for fd in (self.master, self.slave, self.wake_r, self.wake_w):
+            os.close(fd)
+
+
+def _check_batch(out: str, err: str, code: int, journal: Path, why: str) -> None:
+    lines = out.splitlines()
+    assert code == 3 and len(lines) == 3, out + err
+    assert "R01C01: driver SIM-000001: flashed, verified" in lines[0]
+    assert "R01C03: driver SIM-000003: flashed, verified" in lines[2]  # the batch went on
+    assert lines[1].startswith("[2/3] R01C02: driver ") and "failed, NOT verified" in lines[1], lines[1]
+    assert why in lines[1], lines[1]
+    assert err.splitlines() == [f"vlp-flash: 1 driver(s) failed and keep their previous configuration: R01C02; "
+                                f"journal {journal}"]
+    entries = json.loads(journal.read_text())["luminaires"]
+    assert [entries[n]["verified"] for n in NAMES] == [True, False, True]  # the one in progress is journaled
+    assert entries["R01C02"]["status"] == "failed" and why in entries["R01C02"]["message"]
+
+
+@pytest.mark.parametrize("behaviour", sorted(ATTACKS))
+def test_a_hostile_driver_on_a_pty_fails_alone_in_one_line(plans, tmp_path, behaviour):
+    line = PtyLine(_bus(behaviour))
+    journal = tmp_path / "j.json"
+    try:
+        got = subprocess.run([str(BIN / "vlp-flash"), str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port",
+                              line.port, "--key-file", str(plans / "key"), "--journal", str(journal)],
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        line.close()
+    _check_batch(got.stdout, got.stderr, got.returncode, journal, ATTACKS[behaviour])
+
+
+@pytest.mark.parametrize("behaviour", ["zero-staged", "huge-timing", "short-hello"])
+def test_a_hostile_driver_in_process_fails_alone_in_one_line(plans, tmp_path, behaviour, monkeypatch, capsys):
+    monkeypatch.setattr(protocol_sim, "bus_from_url", lambda url: _bus(behaviour))
+    journal = tmp_path / "j.json"
+    code = console_main([str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port", "sim://", "--key-file",
+                         str(plans / "key"), "--journal", str(journal)])
+    out, err = capsys.readouterr()
+    _check_batch(out, err, code, journal, ATTACKS[behaviour])
+
+
+def test_every_attempt_has_a_ceiling_and_each_driver_a_deadline():
+    protocol_sim.register()
+    import serial
+
+    port = serial.serial_for_url(f"sim://?key={KEY.hex()}&faults=stall=1,stall_s=0.05", timeout=0.1)
+    link = Link(port)
+    assert link.timeout_s(80, 80, driver_s=(2**32 - 1) * 1e-6 * 65537) == MAX_ATTEMPT_S  # 12.8 days asked
+    result = flash_driver(link, 1, PLAN_IMAGE, KEY, deadline_s=0.2)  # every answer 50 ms late: never in time
+    assert result.status == "failed" and not result.verified
+    assert "gave no result within its 0 s deadline" in result.message or "deadline" in result.message
+    assert link.deadline is None  # the next driver starts afresh
+    port.close()
+
+
+@pytest.mark.parametrize("flag", ["--key-file", "--bus-map", "--journal"])
+def test_dev_zero_as_an_input_is_refused_without_reading_it_whole(plans, tmp_path, flag, capsys):
+    args = {"--key-file": str(plans / "key"), "--bus-map": None, "--journal": str(tmp_path / "j.json")}
+    args[flag] = "/dev/zero"
+    argv = [str(plans / "a" / "plan.yaml"), "R01C01", "--bus", "--port", f"sim://?key={KEY.hex()}"]
+    argv += [item for name, value in args.items() if value for item in (name, value)]
+    code = console_main(argv)
+    err = capsys.readouterr().err
+    assert code in (1, 2) and len(err.splitlines()) == 1 and "/dev/zero: more than" in err, err
+
+
+@pytest.mark.parametrize("url", ["sim://?drivers=1&kye={k}", "sim:?key={k}", "sim://{k}?drivers=1",
+                                 "sim://?drivers=x&key={k}", "sim://?drivers=1&k%65y={k}&bogus=1"])
+def test_a_mistyped_sim_url_never_echoes_the_key(plans, tmp_path, url, capsys):
+    code = console_main([str(plans / "a" / "plan.yaml"), "R01C01", "--bus", "--port", url.format(k=KEY.hex()),
+                         "--key-file", str(plans / "key"), "--journal", str(tmp_path / "j.json")])
+    out, err = capsys.readouterr()
+    assert code == 2 and len(err.splitlines()) == 1 and "<hidden>" in err, err
+    assert KEY.hex() not in out + err and "busy" not in err
+
+
+def test_a_stalled_line_is_not_a_fault_of_the_protocol():
+    """The hostile checks refuse nothing a faithful driver says: a faulted line still ends verified."""
+    protocol_sim.register()
+    import serial
+
+    port = serial.serial_for_url(f"sim://?key={KEY.hex()}", timeout=0.1)
+    port.bus = SimBus(port.bus.drivers, Faults(corrupt_per_byte=0.002, reset_per_request=0.05, seed=4))
+    assert flash_driver(Link(port), 1, PLAN_IMAGE, KEY).verified
+    port.close()
