@@ -74,19 +74,30 @@ def at_version(image: bytes, version: int) -> bytes:
     return config_image(f["name"], f["id"], f["chips"], f["chip_rate_hz"], f["plan_hash"], image_version=version)
 
 
+VERSION_STEP = 100
+"""Most a driver's claimed version may exceed what the host knows (plan images, journal) and still be followed."""
+
+
 @dataclass(frozen=True)
 class Versions:
-    """Which version to sign (docs/flashing.md, image versions).
+    """Which version to sign (docs/flashing.md, image versions): the host decides, from the plan and the journal.
 
     ``explicit`` (``--image-version``): exactly that one, the driver refuses it if not newer.
-    Otherwise the version follows the driver: one above the version it runs, at least ``floor``
-    (the version in the plan's image files); and if ``journal`` (serial, version) says this plan's
-    image was verified on this very driver, a newer image found there since is not replaced.
+    Otherwise one above the version the driver runs, at least ``floor`` (the version in the plan's image
+    files); the driver's claim is followed only up to :data:`VERSION_STEP` above what the host knows
+    (``floor``, and ``journal``: (serial, version) of this plan's image last verified on this luminaire),
+    so no peer's claim pushes the signed version up (a version burn). If ``journal`` says this plan's image
+    was verified on this very driver, a newer image found there since is not replaced.
     """
 
     floor: int = 1
     explicit: int | None = None
     journal: tuple[str, int] | None = None
+
+    @property
+    def known(self) -> int:
+        """The highest version the host itself knows of for this luminaire."""
+        return max(self.floor, self.journal[1] if self.journal else 0)
 
 
 @dataclass(frozen=True)
@@ -141,6 +152,10 @@ def _choose_version(hello: Hello, versions: Versions) -> int:
         raise _Refused(f"runs version {running}, flashed after this plan's image (version {versions.journal[1]}, "
                        f"journal): this plan is older than what the driver runs; flash the newer plan, or give "
                        f"--image-version {running + 1} to put this plan's image back deliberately")
+    if running > versions.known + VERSION_STEP:
+        raise _Refused(f"claims to run version {running:,}, more than {VERSION_STEP} above the {versions.known:,} this "
+                       "host knows for it (plan images, journal): vlp-flash does not follow such a claim; check which "
+                       "driver this is, or give --image-version N to choose the version deliberately")
     version = max(versions.floor, running + 1)
     if version > MAX_IMAGE_VERSION:
         raise _Refused(f"runs version {running:,}, and vlp-flash signs versions up to {MAX_IMAGE_VERSION:,} only: "

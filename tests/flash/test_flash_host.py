@@ -165,7 +165,7 @@ def test_versions_are_bounded_far_below_2_to_the_32(plans, tmp_path):
     result = flash_driver(Link(port), 1, PLAN_IMAGE, KEY, Versions(floor=MAX_IMAGE_VERSION))
     assert (result.status, result.image_version) == ("flashed", MAX_IMAGE_VERSION)
     replan = config_image("L1", 5, "0111000110011010", 12600.0, "fedcba9876543210")
-    beyond = flash_driver(Link(port), 1, replan, KEY)  # a re-plan would need version 1,000,001
+    beyond = flash_driver(Link(port), 1, replan, KEY, Versions(floor=MAX_IMAGE_VERSION))  # would need 1,000,001
     assert beyond.status == "failed" and "up to 1,000,000" in beyond.message
     port.close()
 

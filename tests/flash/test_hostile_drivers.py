@@ -16,12 +16,12 @@ from conftest import ROOT
 from planner.cli.driver_sim import serve
 from planner.cli.flash import console_main
 from planner.firmware.image import config_image
-from planner.flash.flasher import flash_driver
+from planner.flash.flasher import VERSION_STEP, Versions, flash_driver
 from planner.flash.link import MAX_ATTEMPT_S, Link
 from planner.flash.sim import protocol_sim
 from planner.flash.sim.bus import Faults, SimBus
 from planner.flash.sim.driver import SimulatedDriver, _Refuse
-from planner.flash.wire import WRITE_REPLY, Command, Hello, Status
+from planner.flash.wire import BEGIN_REQUEST, WRITE_REPLY, Command, Hello, Status
 
 BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
@@ -35,12 +35,14 @@ class Hostile(SimulatedDriver):
     def __init__(self, address: int, behaviour: str, serial: str | None = None, **kw):
         super().__init__(address, serial or f"SIM-{address:06d}", KEY, **kw)
         self.behaviour = behaviour
+        self.begun_versions: list[int] = []  # the versions of the images BEGIN announced to it
 
     def hello(self) -> Hello:
         h, b = super().hello(), self.behaviour
         wrong = {"max-block-0": {"max_block": 0}, "slow-blocks": {"block_write_us": 2**32 - 1},
                  "huge-timing": {"max_block": 0xFFFF, "slot_size": 2**32 - 1, "block_write_us": 2**32 - 1},
-                 "control-serial": {"serial": "SIM\n000002"}}.get(b, {})
+                 "control-serial": {"serial": "SIM\n000002"},
+                 "version-999999": {"active_slot": 1, "active_version": 999_999}}.get(b, {})
         return replace(h, **wrong)
 
     def _execute(self, command: int, payload: bytes) -> bytes:
@@ -54,6 +56,8 @@ class Hostile(SimulatedDriver):
             raise _Refuse(Status.OFFSET, 0, "0 bytes staged")
         if command == Command.BEGIN and b == "short-begin":
             return b"\x00\x00"
+        if command == Command.BEGIN:
+            self.begun_versions.append(BEGIN_REQUEST.unpack(payload)[1])
         return super()._execute(command, payload)
 
 
@@ -66,6 +70,7 @@ ATTACKS = {  # behaviour: what the failed driver's line says
     "short-hello": "HELLO reply of 1 bytes, the protocol's is",
     "short-begin": "BEGIN reply of 2 bytes, the protocol's is 8",
     "control-serial": "is not 1 to 16 printable ASCII characters",
+    "version-999999": "claims to run version 999,999, more than 100 above the 1 this host knows for it",
 }
 
 
@@ -186,3 +191,25 @@ def test_a_stalled_line_is_not_a_fault_of_the_protocol():
     port.bus = SimBus(port.bus.drivers, Faults(corrupt_per_byte=0.002, reset_per_request=0.05, seed=4))
     assert flash_driver(Link(port), 1, PLAN_IMAGE, KEY).verified
     port.close()
+
+
+def test_no_claim_of_a_peer_burns_a_version():
+    """A peer claiming a high version is never signed an image above what the host knows plus the step; the
+    host's own knowledge (the plan's floor, the journal) and --image-version decide."""
+    for claimed, versions, signed in ((999_999, Versions(), None), (VERSION_STEP + 1, Versions(), 102),
+                                      (999_999, Versions(floor=999_990), 1_000_000),
+                                      (5_000, Versions(journal=("SIM-000009", 4_950)), 5_001)):
+        protocol_sim.register()
+        import serial
+
+        port = serial.serial_for_url(f"sim://?key={KEY.hex()}", timeout=0.1)
+        peer = Hostile(1, "version-999999")
+        peer.hello = lambda p=peer, v=claimed: replace(SimulatedDriver.hello(p), active_slot=1, active_version=v)
+        port.bus = SimBus([peer])
+        result = flash_driver(Link(port), 1, PLAN_IMAGE, KEY, versions)
+        port.close()
+        if signed is None:
+            assert result.status == "failed" and "vlp-flash does not follow such a claim" in result.message
+            assert peer.begun_versions == [] and result.image_version == 0  # nothing was signed for it
+        else:  # within the step: followed (the real driver refuses it as a rollback: it runs version 0)
+            assert peer.begun_versions and set(peer.begun_versions) == {signed}, (claimed, peer.begun_versions)
