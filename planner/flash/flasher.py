@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import secrets
 import struct
 import time
 import zlib
@@ -31,7 +32,7 @@ from planner.flash.wire import (
     CAP_HMAC,
     CAP_RESUME,
     COMMIT_REQUEST,
-    PROTOCOL_VERSION,
+    NONCE_BYTES,
     VERIFY_REPLY,
     WRITE_HEAD,
     WRITE_REPLY,
@@ -39,6 +40,7 @@ from planner.flash.wire import (
     Hello,
     Status,
     WireError,
+    hello_mac,
     unpack_reply,
 )
 
@@ -56,6 +58,9 @@ DRIVER_DEADLINE_S = 120.0
 
 ASK_GRACE_S = 2 * MAX_ATTEMPT_S
 """Time the HELLO after a failure may take once the driver's deadline has passed [s]."""
+
+HELLO_MAC_S = 0.1
+"""Driver time for a HELLO challenge [s]: the reference AVR driver computes its HMAC-SHA256 in about 30 ms."""
 
 STALLED_WRITES = 4
 """WRITE answers in a row that stage nothing new before the transfer is given up (a peer answering "0 bytes")."""
@@ -104,7 +109,8 @@ class Versions:
 class FlashResult:
     """What happened to one driver, and what it last reported holding."""
 
-    status: str  # "flashed", "current" (already held this image), "verified" (verify-only), "failed"
+    status: str  # "flashed", "current" (already held this image), "verified" (verify-only), "failed",
+    # "unauthenticated" (a protocol v1 driver: it cannot prove who it is, so nothing is signed for it)
     serial: str = ""
     image_sha256: str = ""  # the signed image meant for this driver ("" if it never answered)
     image_version: int = 0
@@ -119,13 +125,39 @@ class _Refused(PlannerError):
     """The host will not sign for this driver (a rollback, a version out of bounds)."""
 
 
-def _hello(link: Link, address: int) -> Hello:
-    hello = Hello.unpack(link.request(address, Command.HELLO, response_bytes=80).payload)  # bounds checked
+class _Unauthenticated(PlannerError):
+    """A protocol v1 driver: its HELLO proves nothing, so the host signs nothing for it."""
+
+    def __init__(self, hello: Hello):
+        super().__init__(f"speaks protocol {hello.protocol}, whose HELLO is unauthenticated (serial, version and "
+                         "image hash are its own word): vlp-flash signs nothing for it and cannot verify it; update "
+                         "its firmware to protocol 2")
+        self.hello = hello
+
+
+def _hello(link: Link, address: int, site_key: bytes) -> Hello:
+    """The driver's HELLO, proved (protocol v2): it answers a fresh nonce with a MAC under the key of the serial
+    it reports, over the nonce, its bus address and every field (docs/protocol.md section 7). A MAC that does
+    not check is :class:`LinkError` (status AUTH); a v1 driver is :class:`_Unauthenticated`."""
+    nonce = secrets.token_bytes(NONCE_BYTES)
+    try:
+        reply = link.request(address, Command.HELLO, nonce, response_bytes=120, driver_s=HELLO_MAC_S)
+    except LinkError as exc:
+        if exc.status != Status.BAD_REQUEST:
+            raise
+        reply = link.request(address, Command.HELLO, response_bytes=80)  # a v1 driver takes no challenge
+        raise _Unauthenticated(Hello.unpack(reply.payload)) from None
+    hello = Hello.unpack(reply.payload)  # bounds checked
+    if not hello.mac:
+        raise _Unauthenticated(hello)
     need = CAP_AB_SLOTS | CAP_RESUME | CAP_HMAC
-    if hello.protocol != PROTOCOL_VERSION or hello.capabilities & need != need:
-        raise LinkError(f"driver {hello.serial} speaks protocol {hello.protocol} with capabilities "
-                        f"{hello.capabilities:#04x}; vlp-flash needs protocol {PROTOCOL_VERSION} with A/B slots, "
+    if hello.capabilities & need != need:
+        raise LinkError(f"driver {hello.serial} has capabilities {hello.capabilities:#04x}; vlp-flash needs A/B slots, "
                         "resume and HMAC (update the driver's firmware)")
+    if not hmac.compare_digest(hello_mac(_key(site_key, hello.serial), nonce, reply.address, hello.body()), hello.mac):
+        raise LinkError(f"driver claiming serial {hello.serial} at address {reply.address} failed the challenge: its "
+                        "HELLO's MAC is not that driver's (an impostor or a replayed answer, or a driver provisioned "
+                        "from another site key): nothing signed for it", Status.AUTH)
     return hello
 
 
@@ -197,38 +229,46 @@ def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int
     link.request(address, Command.COMMIT, COMMIT_REQUEST.pack(sha), driver_s=2 * block_s)
 
 
+Accept = Callable[[Hello], str | None]
+"""Asked with a driver's proved HELLO before anything is signed for it: a refusal message, or None to go on."""
+
+
 def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions = Versions(), *,
                  verify_only: bool = False, progress: Callable[[int, int], None] | None = None,
-                 deadline_s: float = DRIVER_DEADLINE_S) -> FlashResult:
+                 deadline_s: float = DRIVER_DEADLINE_S, accept: Accept | None = None) -> FlashResult:
     """Bring the driver at ``address`` to the plan's ``image`` (unsigned; or, ``verify_only``, check it runs it)
-    within ``deadline_s`` [s]. Whatever the peer answers, this returns a result: a reply that breaks the
-    protocol, no progress or the deadline fail this driver only, in one line."""
+    within ``deadline_s`` [s]. Only a driver that proves its serial (protocol v2) and that ``accept`` takes
+    gets an image signed. Whatever the peer answers, this returns a result: a reply that breaks the protocol,
+    no progress, a failed challenge or the deadline fail this driver only, in one line."""
     started = time.perf_counter()
     result, wrote = FlashResult("failed"), False
     link.deadline = started + deadline_s
     try:
-        result, wrote = _sessions(link, address, image, site_key, versions, verify_only, progress, started)
+        result, wrote = _sessions(link, address, image, site_key, versions, verify_only, progress, started, accept)
     finally:
         link.deadline = None
-    if result.verified:
-        return result
+    if result.verified or result.status == "unauthenticated":
+        return replace(result, seconds=time.perf_counter() - started)
     link.deadline = time.perf_counter() + ASK_GRACE_S
     try:
-        return _asked(link, address, image, site_key, result, wrote, verify_only, started)
+        return _asked(link, address, image, site_key, result, wrote, verify_only, started, accept)
     finally:
         link.deadline = None
 
 
 def _sessions(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions, verify_only: bool,
-              progress: Callable[[int, int], None] | None, started: float) -> tuple[FlashResult, bool]:
+              progress: Callable[[int, int], None] | None, started: float,
+              accept: Accept | None) -> tuple[FlashResult, bool]:
     """Up to :data:`SESSIONS` attempts: the result (verified, or the last failure) and whether bytes were sent."""
     result, wrote = FlashResult("failed"), False
     for _ in range(SESSIONS):
         try:
-            hello = _hello(link, address)
+            hello = _hello(link, address, site_key)
             key = _key(site_key, hello.serial)
             result = replace(result, serial=hello.serial, active_version=hello.active_version,
                              active_sha256=hello.active_sha256.hex())
+            if accept is not None and (refusal := accept(hello)):
+                raise _Refused(refusal)
             if _runs_plan(hello, image, key):
                 status = "verified" if verify_only else "flashed" if wrote else "current"
                 return replace(result, status=status, image_sha256=result.active_sha256, verified=True, message="",
@@ -250,6 +290,9 @@ def _sessions(link: Link, address: int, image: bytes, site_key: bytes, versions:
         except _Refused as exc:
             result = replace(result, message=str(exc))
             break
+        except _Unauthenticated as exc:
+            return replace(result, status="unauthenticated", serial=exc.hello.serial, message=str(exc),
+                           active_version=exc.hello.active_version, active_sha256=exc.hello.active_sha256.hex()), wrote
         except WireError as exc:  # a reply that breaks the protocol: retrying the same peer cannot help
             result = replace(result, message=f"driver {_who(result, address)} answered outside the protocol: {exc}")
             break
@@ -274,15 +317,17 @@ def _who(result: FlashResult, address: int) -> str:
 
 
 def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: FlashResult, wrote: bool,
-           verify_only: bool, started: float) -> FlashResult:
+           verify_only: bool, started: float, accept: Accept | None) -> FlashResult:
     """``result`` after a failure, with what the driver now reports (it may run the new image after all). A
     driver that never answered is asked too: it may have lost power in the midst of HELLO and booted since."""
     for _ in range(ASK_AFTER_FAILURE):
         try:
-            hello = _hello(link, address)
+            hello = _hello(link, address, site_key)
+            if accept is not None and accept(hello):
+                return replace(result, seconds=time.perf_counter() - started)  # not this luminaire's driver
             held = _runs_plan(hello, image, _key(site_key, hello.serial))
             break
-        except (LinkError, WireError, _Refused):
+        except (LinkError, WireError, _Refused, _Unauthenticated):
             continue
     else:  # silent: what it runs is unknown (it may have taken the image before it fell silent)
         unknown = "; it did not answer afterwards, so what it runs is unknown" if wrote else ""

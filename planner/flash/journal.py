@@ -47,7 +47,7 @@ class _Entry(BaseModel):
     id: Annotated[Count, Field(ge=1)]
     where: Text = ""
     driver_serial: Text = ""
-    status: Literal["flashed", "current", "verified", "failed"]
+    status: Literal["flashed", "current", "verified", "failed", "unauthenticated"]
     verified: Annotated[bool, Strict()] = False
     image_sha256: Text = ""
     image_version: Count = 0

@@ -8,9 +8,11 @@ this module, so the two sides cannot disagree on a byte.
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import struct
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import IntEnum
 
 from cobs import cobs
@@ -21,7 +23,11 @@ ANY_ADDRESS = 0xFFFF  # point to point: whichever driver is plugged in answers
 FLAG_RESPONSE = 0x01
 FLAG_ERROR = 0x02
 MAX_PAYLOAD = 1024
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
+NONCE_BYTES = 16
+"""The host's challenge in a HELLO request (protocol v2)."""
+HELLO_MAC_LABEL = b"VLP hello v2\x00"
+"""Starts the message a HELLO's MAC covers: never "VLPC", the first bytes of a signed image."""
 
 _HEAD = struct.Struct("<HBBBH")
 _CRC = struct.Struct("<I")
@@ -124,6 +130,8 @@ HELLO_REPLY = struct.Struct("<BBHII H16sBI32s")
 """protocol version, capabilities, max block, slot size [bytes], block write time [us], firmware version,
 serial (ASCII, NUL-padded), active slot (0 none, 1 A, 2 B), active image version, active image SHA-256."""
 CAP_AB_SLOTS, CAP_RESUME, CAP_HMAC = 0x01, 0x02, 0x04
+HELLO_MAC_BYTES = 32
+HELLO_MAC_ADDRESS = struct.Struct("<H")  # the driver's own bus address, in the MAC'd message
 
 BEGIN_REQUEST = struct.Struct("<II32sB")  # length, version, SHA-256, restart (1 = discard staged)
 BEGIN_REPLY = struct.Struct("<II")  # resume offset (bytes already staged), CRC-32 of those bytes
@@ -162,22 +170,30 @@ class Hello:
     active_slot: int
     active_version: int
     active_sha256: bytes
+    mac: bytes = b""  # protocol v2, answering a challenge: hello_mac() of the fields above
 
-    def pack(self) -> bytes:
+    def body(self) -> bytes:
+        """The 67 bytes of fields (without the MAC)."""
         return HELLO_REPLY.pack(self.protocol, self.capabilities, self.max_block, self.slot_size, self.block_write_us,
                                 self.firmware_version, self.serial.encode("ascii")[:16], self.active_slot,
                                 self.active_version, self.active_sha256)
+
+    def pack(self) -> bytes:
+        return self.body() + self.mac
 
     @classmethod
     def unpack(cls, payload: bytes) -> Hello:
         """A HELLO reply, every field checked against the protocol's bounds; :class:`ReplyError` if one is
         out of range (so no hostile value reaches a timeout, a loop or a message)."""
-        f = list(unpack_reply(HELLO_REPLY, payload, "HELLO"))
+        mac = payload[HELLO_REPLY.size:] if len(payload) == HELLO_REPLY.size + HELLO_MAC_BYTES else b""
+        f = list(unpack_reply(HELLO_REPLY, payload[:len(payload) - len(mac)], "HELLO"))
         raw = f[6].rstrip(b"\x00")
         if not raw or b"\x00" in raw or not all(0x21 <= c <= 0x7E for c in raw):
             raise ReplyError(f"HELLO serial {raw[:16]!r} is not 1 to 16 printable ASCII characters")
         f[6] = raw.decode("ascii")
-        hello = cls(*f)
+        hello = replace(cls(*f), mac=mac)
+        if hello.protocol not in (1, 2) or (mac and hello.protocol < 2):
+            raise ReplyError(f"HELLO of protocol {hello.protocol} ({len(payload)} bytes): vlp-flash speaks 1 and 2")
         low, high = MAX_BLOCK_RANGE
         for name, value, bounds in (("max_block", hello.max_block, MAX_BLOCK_RANGE),
                                     ("slot_size", hello.slot_size, (low, MAX_SLOT_BYTES)),
@@ -186,6 +202,12 @@ class Hello:
             if not bounds[0] <= value <= bounds[1]:
                 raise ReplyError(f"HELLO {name} {value:,} is outside the protocol's {bounds[0]:,}..{bounds[1]:,}")
         return hello
+
+
+def hello_mac(driver_key: bytes, nonce: bytes, address: int, body: bytes) -> bytes:
+    """HELLO's MAC (protocol v2): HMAC-SHA256(driver key, label | nonce | address u16 | the 67 bytes of fields)."""
+    message = HELLO_MAC_LABEL + nonce + HELLO_MAC_ADDRESS.pack(address) + body
+    return hmac.new(driver_key, message, hashlib.sha256).digest()
 
 
 def error_payload(status: Status, detail: int = 0, message: str = "") -> bytes:

@@ -134,12 +134,11 @@ def test_versions_follow_the_driver_and_a_true_rollback_is_refused_with_a_hint()
     stale = flash_driver(link, 1, PLAN_IMAGE, KEY, Versions(journal=("SIM-000001", 1)))
     assert stale.status == "failed" and "older than what the driver runs" in stale.message
     assert "--image-version 3" in stale.message and d.active_version == 2
-    wrong = flash_driver(link, 1, replan, b"k" * 32, Versions(explicit=5))
-    assert wrong.status == "failed" and "AUTH" in wrong.message and d.active_version == 2
+    wrong = flash_driver(link, 1, replan, b"k" * 32, Versions(explicit=5))  # another site's key: no proof, no image
+    assert wrong.status == "failed" and "failed the challenge" in wrong.message and d.active_version == 2
     back = flash_driver(link, 1, PLAN_IMAGE, KEY, Versions(explicit=3))  # the deliberate way back
     assert (back.status, d.active_version) == ("flashed", 3)
-    assert (wrong.active_version, wrong.active_sha256) == (2, hashlib.sha256(
-        sign_image(at_version(replan, 2), driver_key(KEY, "SIM-000001"))).hexdigest())  # what it really held
+    assert (wrong.serial, wrong.active_version, wrong.active_sha256) == ("", 0, "")  # nothing unproved is kept
     port.close()
 
 
@@ -405,3 +404,14 @@ def test_begin_gets_the_time_to_erase_a_whole_slot(monkeypatch):
     blocks = -(-d.slot_size // d.max_block)
     assert given["BEGIN"] == [pytest.approx((blocks + 1) * block_s)]
     assert given["WRITE"] == [pytest.approx(block_s)] * len(given["WRITE"]) and given["COMMIT"] == [pytest.approx(2 * block_s)]
+
+
+def test_a_protocol_1_driver_is_reported_unauthenticated_and_nothing_is_signed_for_it(plans, tmp_path, capsys):
+    journal = tmp_path / "j.json"
+    code = console_main([str(plans / "a" / "plan.yaml"), "R01C01", "--bus", "--key-file", str(plans / "key"),
+                         "--journal", str(journal), "--port", _url(1, extra="&protocol=1")])
+    out = capsys.readouterr().out
+    assert code == 3 and "R01C01: driver SIM-000001: unauthenticated, NOT verified" in out
+    assert "update its firmware to protocol 2" in out and len(out.splitlines()) == 1
+    e = _entries(journal)["R01C01"]
+    assert (e["status"], e["verified"], e["image_sha256"], e["image_version"]) == ("unauthenticated", False, "", 0)

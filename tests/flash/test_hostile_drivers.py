@@ -21,7 +21,7 @@ from planner.flash.link import MAX_ATTEMPT_S, Link
 from planner.flash.sim import protocol_sim
 from planner.flash.sim.bus import Faults, SimBus
 from planner.flash.sim.driver import SimulatedDriver, _Refuse
-from planner.flash.wire import BEGIN_REQUEST, WRITE_REPLY, Command, Hello, Status
+from planner.flash.wire import BEGIN_REQUEST, WRITE_REPLY, Command, Deframer, Hello, Packet, Status, decode, encode
 
 BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
@@ -58,6 +58,11 @@ class Hostile(SimulatedDriver):
             return b"\x00\x00"
         if command == Command.BEGIN:
             self.begun_versions.append(BEGIN_REQUEST.unpack(payload)[1])
+        if command == Command.HELLO and b == "replay":  # a real driver's answer, recorded earlier
+            return self.recorded
+        if command == Command.HELLO and b == "relay":  # the host's challenge, passed to a real driver elsewhere
+            frames = Deframer().feed(self.victim.receive(encode(Packet(self.victim.address, 0, 1, command, payload))))
+            return decode(frames[0]).payload
         return super()._execute(command, payload)
 
 
@@ -71,12 +76,35 @@ ATTACKS = {  # behaviour: what the failed driver's line says
     "short-begin": "BEGIN reply of 2 bytes, the protocol's is 8",
     "control-serial": "is not 1 to 16 printable ASCII characters",
     "version-999999": "claims to run version 999,999, more than 100 above the 1 this host knows for it",
+    "replay": "driver claiming serial SIM-000002 at address 2 failed the challenge: its HELLO's MAC is not that driver's",
+    "relay": "driver claiming serial SIM-000009 at address 2 failed the challenge: its HELLO's MAC is not that driver's",
+    "protocol-1": "speaks protocol 1, whose HELLO is unauthenticated (serial, version and image hash are its own word)",
 }
 
 
-def _bus(behaviour: str) -> SimBus:
-    """Three drivers at addresses 1..3; the second is hostile."""
-    return SimBus([SimulatedDriver(1, "SIM-000001", KEY), Hostile(2, behaviour), SimulatedDriver(3, "SIM-000003", KEY)])
+def _holding(plans: Path, name: str, address: int, serial_: str) -> SimulatedDriver:
+    """A real driver holding the plan's image for ``name``, flashed by the host."""
+    import serial
+
+    protocol_sim.register()
+    port = serial.serial_for_url(f"sim://?key={KEY.hex()}", timeout=0.1)
+    real = SimulatedDriver(address, serial_, KEY)
+    port.bus = SimBus([real])
+    image = (plans / "a" / "firmware" / name / "vlp_config.bin").read_bytes()
+    assert flash_driver(Link(port), address, image, KEY).verified
+    return real
+
+
+def _bus(behaviour: str, plans: Path) -> SimBus:
+    """Three drivers at addresses 1..3; the second is hostile (for "replay" and "relay": blank, and without
+    the site's keys; it answers HELLO with a recorded or relayed answer of a real driver holding the image)."""
+    peer = Hostile(2, behaviour, protocol=1 if behaviour == "protocol-1" else 2)
+    if behaviour == "replay":
+        real = _holding(plans, "R01C02", 2, "SIM-000002")
+        peer.recorded = decode(Deframer().feed(real.receive(encode(Packet(2, 0, 1, Command.HELLO, bytes(16)))))[0]).payload
+    if behaviour == "relay":  # SIM-000009 holds R01C02's image, and answers the host's challenge through the peer
+        peer.victim = _holding(plans, "R01C02", 9, "SIM-000009")
+    return SimBus([SimulatedDriver(1, "SIM-000001", KEY), peer, SimulatedDriver(3, "SIM-000003", KEY)])
 
 
 @pytest.fixture(scope="module")
@@ -115,18 +143,20 @@ def _check_batch(out: str, err: str, code: int, journal: Path, why: str) -> None
     assert code == 3 and len(lines) == 3, out + err
     assert "R01C01: driver SIM-000001: flashed, verified" in lines[0]
     assert "R01C03: driver SIM-000003: flashed, verified" in lines[2]  # the batch went on
-    assert lines[1].startswith("[2/3] R01C02: driver ") and "failed, NOT verified" in lines[1], lines[1]
+    status = "unauthenticated" if "protocol 1" in why else "failed"
+    assert lines[1].startswith("[2/3] R01C02: driver ") and f"{status}, NOT verified" in lines[1], lines[1]
     assert why in lines[1], lines[1]
     assert err.splitlines() == [f"vlp-flash: 1 driver(s) failed and keep their previous configuration: R01C02; "
                                 f"journal {journal}"]
     entries = json.loads(journal.read_text())["luminaires"]
     assert [entries[n]["verified"] for n in NAMES] == [True, False, True]  # the one in progress is journaled
-    assert entries["R01C02"]["status"] == "failed" and why in entries["R01C02"]["message"]
+    assert entries["R01C02"]["status"] == status and why in entries["R01C02"]["message"]
 
 
 @pytest.mark.parametrize("behaviour", sorted(ATTACKS))
 def test_a_hostile_driver_on_a_pty_fails_alone_in_one_line(plans, tmp_path, behaviour):
-    line = PtyLine(_bus(behaviour))
+    bus = _bus(behaviour, plans)
+    line = PtyLine(bus)
     journal = tmp_path / "j.json"
     try:
         got = subprocess.run([str(BIN / "vlp-flash"), str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port",
@@ -135,16 +165,25 @@ def test_a_hostile_driver_on_a_pty_fails_alone_in_one_line(plans, tmp_path, beha
     finally:
         line.close()
     _check_batch(got.stdout, got.stderr, got.returncode, journal, ATTACKS[behaviour])
+    assert bus.drivers[1].begun_versions == [] or behaviour in ("zero-staged", "offset-zero", "short-begin")
 
 
-@pytest.mark.parametrize("behaviour", ["zero-staged", "huge-timing", "short-hello"])
+@pytest.mark.parametrize("behaviour", ["zero-staged", "huge-timing", "short-hello", "replay", "relay", "protocol-1"])
 def test_a_hostile_driver_in_process_fails_alone_in_one_line(plans, tmp_path, behaviour, monkeypatch, capsys):
-    monkeypatch.setattr(protocol_sim, "bus_from_url", lambda url: _bus(behaviour))
+    bus = _bus(behaviour, plans)
+    monkeypatch.setattr(protocol_sim, "bus_from_url", lambda url: bus)
     journal = tmp_path / "j.json"
     code = console_main([str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port", "sim://", "--key-file",
                          str(plans / "key"), "--journal", str(journal)])
     out, err = capsys.readouterr()
     _check_batch(out, err, code, journal, ATTACKS[behaviour])
+    if behaviour in ("replay", "relay", "protocol-1"):  # and --verify-only does not take its word either
+        code = console_main([str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port", "sim://", "--key-file",
+                             str(plans / "key"), "--journal", str(journal), "--verify-only"])
+        out = capsys.readouterr().out
+        assert code == 3 and "R01C02" in out and out.count(", verified (") == 2, out
+        assert json.loads(journal.read_text())["luminaires"]["R01C02"]["verified"] is False
+    assert bus.drivers[1].begun_versions == [] or behaviour == "zero-staged"  # never signed for
 
 
 def test_every_attempt_has_a_ceiling_and_each_driver_a_deadline():
