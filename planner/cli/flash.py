@@ -59,6 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "be updated again; drivers refuse one not above what they run); default: one above "
                         "the version each driver runs, at least the version in the plan's images, and never over "
                         "a newer image the journal shows came after this plan's (docs/flashing.md)")
+    p.add_argument("--replace-driver", action="store_true",
+                   help="let a driver other than the one bound to a luminaire in the journal take its image (a "
+                   "replaced driver), or a driver bound to another luminaire move (journaled); without it both are "
+                   "refused")
     p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
     p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
     p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
@@ -164,6 +168,23 @@ def _versions(journal: Journal, e: Entry, image: bytes, explicit: int | None) ->
                     journal=journal.last_verified(e.name))
 
 
+def _acceptor(journal: Journal, name: str, args, say):
+    """flash_driver's ``accept``: the journal's binding of luminaires to drivers (``--replace-driver`` lifts it);
+    in interactive mode the installer sees which driver answered before anything is written."""
+    shown: set[str] = set()
+
+    def accept(hello) -> str | None:
+        refusal = None if args.replace_driver else journal.refusal(name, hello.serial)
+        if not args.bus and hello.serial not in shown:
+            shown.add(hello.serial)
+            bound = journal.bound(name)
+            print(f"  driver {hello.serial} answered (proved its key; runs version {hello.active_version}); "
+                  + (f"{name} is bound to {bound}" if bound else f"{name} has no driver bound yet")
+                  + (": refused" if refusal else ""), file=say, flush=True)
+        return refusal
+    return accept
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.list_ports:
@@ -230,7 +251,8 @@ def main(argv: list[str] | None = None) -> int:
                     continue
             address = where.get(name, ANY_ADDRESS)
             result = flash_driver(link, address, image, key, _versions(journal, e, image, args.image_version),
-                                  verify_only=args.verify_only, deadline_s=args.driver_deadline_s)
+                                  verify_only=args.verify_only, deadline_s=args.driver_deadline_s,
+                                  accept=_acceptor(journal, name, args, say))
             journal.record(name, e.id, f"{shown}@{address}" if args.bus else shown, result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
             version = f"version {result.image_version}, " if result.image_version else ""

@@ -56,6 +56,8 @@ class _Entry(BaseModel):
     message: Text = ""
     time: Text = ""
     last_verified: _Proof | None = None
+    bound_serial: Text = ""
+    replaced_drivers: list[Text] = []
 
 
 class _JournalFile(BaseModel):
@@ -132,8 +134,36 @@ class Journal:
             return None
         return proof["driver_serial"], self.version(proof)
 
+    def bound(self, name: str) -> str:
+        """The serial of the driver bound to ``name``: the one that took its first image ("" if none yet). A journal
+        from before bindings binds the driver this plan's image was last verified on."""
+        e = self.entries.get(name) or {}
+        if e.get("bound_serial"):
+            return e["bound_serial"]
+        proof = self.last_verified(name)
+        return proof[0] if proof else ""
+
+    def owner(self, serial: str) -> str:
+        """The luminaire ``serial`` is bound to ("" if none)."""
+        return next((name for name in sorted(self.entries) if self.bound(name) == serial), "")
+
+    def refusal(self, name: str, serial: str) -> str | None:
+        """Why the proved driver ``serial`` may not take ``name``'s image (None: it may): ``name`` is bound to
+        another driver, or ``serial`` to another luminaire. ``--replace-driver`` overrides, journaled."""
+        bound, owner = self.bound(name), self.owner(serial)
+        if bound and bound != serial:
+            return (f"driver {serial} answered, but {name} is bound to driver {bound} (it took its first image; "
+                    f"journal): plug {bound}, or give --replace-driver if {bound} was replaced by {serial}")
+        if owner and owner != name:
+            return (f"driver {serial} is bound to luminaire {owner} (journal), not {name}: plug {name}'s own driver "
+                    f"(check the bus map), or give --replace-driver to move {serial} to {name}")
+        return None
+
     def record(self, name: str, luminaire_id: int, where: str, result: FlashResult) -> None:
-        """Merge ``name``'s entry into the file on disk, under the lock (other runs' entries are kept)."""
+        """Merge ``name``'s entry into the file on disk, under the lock (other runs' entries are kept). A verified
+        driver binds ``name`` to its serial if none is bound; one taking another's place (it could only pass
+        :meth:`refusal` with ``--replace-driver``) is bound instead, the old serial kept in ``replaced_drivers``
+        and its binding to another luminaire removed."""
         entry = {
             "id": luminaire_id, "where": where, "driver_serial": result.serial, "status": result.status,
             "verified": result.verified, "image_sha256": result.image_sha256, "image_version": result.image_version,
@@ -146,6 +176,19 @@ class Journal:
                 entry["last_verified"] = {"driver_serial": result.serial, "image_version": result.image_version}
             elif (proof := self.last_verified(name)) is not None:
                 entry["last_verified"] = {"driver_serial": proof[0], "image_version": proof[1]}
+            old = self.entries.get(name) or {}
+            bound, replaced = self.bound(name), list(old.get("replaced_drivers", []))
+            if result.verified and result.serial and bound != result.serial:
+                if bound:
+                    replaced.append(bound)
+                for other in [n for n in self.entries if n != name and self.bound(n) == result.serial]:
+                    moved = {**self.entries[other], "bound_serial": "", "status": "failed", "verified": False,
+                             "message": f"its driver {result.serial} was moved to {name} (--replace-driver)",
+                             "replaced_drivers": [*self.entries[other].get("replaced_drivers", []), result.serial]}
+                    moved.pop("last_verified", None)  # that proof was of the driver now moved away
+                    self.entries[other] = moved
+                bound = result.serial
+            entry.update(bound_serial=bound, replaced_drivers=replaced)
             self.entries[name] = entry
             doc = {"format": FORMAT, "plan_hash": self.plan_hash, "luminaires": dict(sorted(self.entries.items()))}
             write_text_atomically(self.path, json.dumps(doc, indent=2) + "\n")

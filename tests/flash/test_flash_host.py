@@ -382,6 +382,7 @@ def test_interactive_mode_asks_for_each_driver_on_a_terminal(plans, tmp_path):
     os.close(slave)
     assert proc.returncode == 0, proc.stderr
     assert "plug the driver of R01C01 (ID" in proc.stdout and "plug the driver of R01C02" in proc.stdout
+    assert "driver SIM-000001 answered (proved its key; runs version 0); R01C01 has no driver bound yet" in proc.stdout
     assert proc.stdout.count("flashed, verified") == 1
     assert list(_entries(tmp_path / "j.json")) == ["R01C01"]
 

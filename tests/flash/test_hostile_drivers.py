@@ -252,3 +252,50 @@ def test_no_claim_of_a_peer_burns_a_version():
             assert peer.begun_versions == [] and result.image_version == 0  # nothing was signed for it
         else:  # within the step: followed (the real driver refuses it as a rollback: it runs version 0)
             assert peer.begun_versions and set(peer.begun_versions) == {signed}, (claimed, peer.begun_versions)
+
+
+def _run(plans: Path, journal: Path, flash: Path, bus_map: str, *extra: str, prefix: str = "SIM-") -> int:
+    (journal.parent / "map.csv").write_text(bus_map)
+    names = [row.split(",")[0] for row in bus_map.split()]
+    code = console_main([str(plans / "a" / "plan.yaml"), *names, "--bus", "--bus-map", str(journal.parent / "map.csv"),
+                         "--key-file", str(plans / "key"), "--journal", str(journal), "--port",
+                         f"sim://?drivers=3&key={KEY.hex()}&flash={flash}&prefix={prefix}", *extra])
+    return code
+
+
+def _entries(journal: Path) -> dict:
+    return json.loads(journal.read_text())["luminaires"]
+
+
+def test_a_swapped_bus_map_or_a_foreign_driver_is_refused_and_replace_driver_is_journaled(plans, tmp_path, capsys):
+    journal, flash = tmp_path / "j.json", tmp_path / "flash"
+    assert _run(plans, journal, flash, "R01C01,1\nR01C02,2\n") == 0  # first images: bound to SIM-1, SIM-2
+    capsys.readouterr()
+    assert [_entries(journal)[n]["bound_serial"] for n in ("R01C01", "R01C02")] == ["SIM-000001", "SIM-000002"]
+    assert _run(plans, journal, flash, "R01C01,2\nR01C02,1\n") == 3  # a swapped map: each the other's driver
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 2 and all("failed, NOT verified" in line for line in out)
+    assert "driver SIM-000002 answered, but R01C01 is bound to driver SIM-000001" in out[0]
+    assert "driver SIM-000001 answered, but R01C02 is bound to driver SIM-000002" in out[1]
+    entries = _entries(journal)  # nothing rebound, and nothing reflashed: each driver plays its own luminaire
+    assert [entries[n]["bound_serial"] for n in ("R01C01", "R01C02")] == ["SIM-000001", "SIM-000002"]
+    assert _run(plans, journal, flash, "R01C01,1\nR01C02,2\n", "--verify-only") == 0
+    capsys.readouterr()
+    # the same driver offered for a second luminaire (R01C03 at SIM-000001's address)
+    assert _run(plans, journal, flash, "R01C03,1\n") == 3
+    assert "driver SIM-000001 is bound to luminaire R01C01 (journal), not R01C03" in capsys.readouterr().out
+    assert "R01C03" not in [n for n, e in _entries(journal).items() if e["verified"]]
+    # a new driver (another serial) in R01C01's place: refused, then taken with --replace-driver
+    assert _run(plans, journal, flash, "R01C01,1\n", prefix="NEW-") == 3
+    assert "driver NEW-000001 answered, but R01C01 is bound to driver SIM-000001" in capsys.readouterr().out
+    assert _run(plans, journal, flash, "R01C01,1\n", "--replace-driver", prefix="NEW-") == 0
+    capsys.readouterr()
+    e = _entries(journal)["R01C01"]
+    assert (e["bound_serial"], e["replaced_drivers"], e["verified"]) == ("NEW-000001", ["SIM-000001"], True)
+    # and a driver moved on purpose: SIM-000002 to R01C03; R01C02's entry says so and is no longer verified
+    assert _run(plans, journal, flash, "R01C03,2\n", "--replace-driver") == 0
+    capsys.readouterr()
+    entries = _entries(journal)
+    assert entries["R01C03"]["bound_serial"] == "SIM-000002" and entries["R01C03"]["verified"]
+    assert (entries["R01C02"]["bound_serial"], entries["R01C02"]["verified"]) == ("", False)
+    assert "its driver SIM-000002 was moved to R01C03 (--replace-driver)" in entries["R01C02"]["message"]
