@@ -214,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     where = read_bus_map(plan, args.bus_map) if args.bus else {}
     if args.bus and (absent := [e.name for e in targets if e.name not in where]):
         raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
-    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest)
+    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest, key)
     if args.dry_run:
         for e in targets:
             skip = args.resume and journal.verified(e.name, args.image_version) is not None

@@ -42,3 +42,12 @@ def driver_key(site_key: bytes, serial: str) -> bytes:
     if not serial.isascii() or not 0 < len(serial) <= 16:
         raise ValueError(f"driver serial {serial!r} must be 1 to 16 ASCII characters")
     return hmac.new(site_key, DRIVER_KEY_LABEL + serial.encode("ascii"), hashlib.sha256).digest()
+
+
+JOURNAL_KEY_LABEL = b"VLP journal key v1\x00"
+
+
+def journal_key(site_key: bytes) -> bytes:
+    """The key sealing as-built journal entries: HMAC-SHA256(site key, "VLP journal key v1" NUL), never a
+    driver key (a driver's serial is never that label), so no driver can seal a journal entry."""
+    return hmac.new(site_key, JOURNAL_KEY_LABEL, hashlib.sha256).digest()

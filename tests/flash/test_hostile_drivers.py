@@ -299,3 +299,27 @@ def test_a_swapped_bus_map_or_a_foreign_driver_is_refused_and_replace_driver_is_
     assert entries["R01C03"]["bound_serial"] == "SIM-000002" and entries["R01C03"]["verified"]
     assert (entries["R01C02"]["bound_serial"], entries["R01C02"]["verified"]) == ("", False)
     assert "its driver SIM-000002 was moved to R01C03 (--replace-driver)" in entries["R01C02"]["message"]
+
+
+def test_a_forged_or_edited_journal_is_refused_and_resume_skips_nothing_on_its_word(plans, tmp_path, capsys):
+    from planner.flash.journal import Journal
+
+    journal, flash = tmp_path / "j.json", tmp_path / "flash"
+    assert _run(plans, journal, flash, "R01C01,1\n") == 0
+    capsys.readouterr()
+    doc = json.loads(journal.read_text())
+    real = doc["luminaires"]["R01C01"]
+    assert len(real["seal"]) == 64 and Journal(journal, doc["plan_hash"], KEY).entries["R01C01"]["verified"]
+    forged = [  # a hand-written entry with the right plan hash; a sealed entry moved to another luminaire; an edit
+        {**doc, "luminaires": {**doc["luminaires"], "R01C02": {**real, "id": 2, "seal": ""}}},
+        {**doc, "luminaires": {"R01C02": {**real}}},
+        {**doc, "luminaires": {"R01C01": {**real, "bound_serial": "SIM-000002"}}},
+    ]
+    for k, edited in enumerate(forged):
+        journal.write_text(json.dumps(edited))
+        code = _run(plans, journal, flash, "R01C01,1\nR01C02,2\n", "--resume")
+        out, err = capsys.readouterr()
+        assert code == 1 and out == "" and len(err.splitlines()) == 1, (k, out, err)
+        assert "is not sealed under this site key" in err and "vlp-flash --verify-only rebuilds it" in err
+        assert json.loads(journal.read_text()) == edited  # refused before anything: no driver flashed, no entry
+    assert Journal(journal, doc["plan_hash"]).entries  # read without the key (vlp-report), unchecked
