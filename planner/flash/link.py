@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 
 from planner.errors import PlannerError, UsageError
-from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status, WireError, decode, encode, parse_error
+from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status, encode, parse_error
 
 RETRIES = 4
 BASE_TIMEOUT_S = 0.020
@@ -125,12 +125,9 @@ class Link:
             if not data:
                 continue
             self.stats.bytes_received += len(data)
-            for frame in self._deframer.feed(data):
-                try:
-                    p = decode(frame)
-                except WireError:
-                    self.stats.dropped_frames += 1
-                    continue
+            packets, dropped = self._deframer.packets(data)
+            self.stats.dropped_frames += dropped
+            for p in packets:
                 if (p.flags & FLAG_RESPONSE and p.seq == self.seq and p.command == command
                         and (p.address == address or address == 0xFFFF)):
                     return p

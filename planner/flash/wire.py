@@ -124,6 +124,17 @@ class Deframer:
                 self._buffer.append(byte)
         return frames
 
+    def packets(self, data: bytes) -> tuple[list[Packet], int]:
+        """The packets ``data`` completes, and how many damaged frames were dropped (both ends of the line
+        read this way: the host's link and the simulated driver)."""
+        packets, dropped = [], 0
+        for frame in self.feed(data):
+            try:
+                packets.append(decode(frame))
+            except WireError:
+                dropped += 1
+        return packets, dropped
+
 
 # Payloads (docs/protocol.md has the tables).
 HELLO_REPLY = struct.Struct("<BBHII H16sBI32s")

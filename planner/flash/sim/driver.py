@@ -40,8 +40,6 @@ from planner.flash.wire import (
     Hello,
     Packet,
     Status,
-    WireError,
-    decode,
     encode,
     error_payload,
     hello_mac,
@@ -162,12 +160,9 @@ class SimulatedDriver:
         if self._down and data:
             self._boot()
         out = bytearray()
-        for frame in self._deframer.feed(data):
-            try:
-                packet = decode(frame)
-            except WireError:
-                self.stats.dropped += 1
-                continue
+        packets, dropped = self._deframer.packets(data)
+        self.stats.dropped += dropped
+        for packet in packets:
             if packet.is_response or packet.address not in (self.address, ANY_ADDRESS):
                 continue
             self.stats.frames += 1
