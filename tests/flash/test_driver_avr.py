@@ -297,6 +297,7 @@ def test_the_firmware_proves_its_hello_and_an_impostor_replaying_it_is_never_ver
         assert again.payload[:67] == reply.payload[:67] and again.payload[67:] != reply.payload[67:]
         other_site = flash_driver(link, 1, unsigned, bytes(32), deadline_s=30)
         assert not other_site.verified and "failed the challenge" in other_site.message
+    assert (tmp_path / "eeprom" / "AVR-000001.eeprom").stat().st_mode & 0o777 == 0o600  # it holds the driver key
     protocol_sim.register()
     fake = serial.serial_for_url(f"sim://?key={KEY.hex()}&prefix=AVR-", timeout=0.1)
     impostor = fake.bus.drivers[0]  # blank, at address 1, claiming AVR-000001: it answers with the recording
