@@ -129,9 +129,10 @@ class _Unauthenticated(PlannerError):
     """A protocol v1 driver: its HELLO proves nothing, so the host signs nothing for it."""
 
     def __init__(self, hello: Hello):
-        super().__init__(f"speaks protocol {hello.protocol}, whose HELLO is unauthenticated (serial, version and "
-                         "image hash are its own word): vlp-flash signs nothing for it and cannot verify it; update "
-                         "its firmware to protocol 2")
+        why = (f"speaks protocol {hello.protocol}, whose HELLO is unauthenticated" if hello.protocol < 2 else
+               "answered the challenge without a MAC")
+        super().__init__(f"{why} (serial, version and image hash are its own word): vlp-flash signs nothing for it "
+                         "and cannot verify it; update its firmware to protocol 2")
         self.hello = hello
 
 

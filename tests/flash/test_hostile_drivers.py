@@ -58,6 +58,8 @@ class Hostile(SimulatedDriver):
             return b"\x00\x00"
         if command == Command.BEGIN:
             self.begun_versions.append(BEGIN_REQUEST.unpack(payload)[1])
+        if command == Command.HELLO and b == "no-mac":  # a version 2 answer to the challenge, but no MAC
+            return self.hello().body()
         if command == Command.HELLO and b == "replay":  # a real driver's answer, recorded earlier
             return self.recorded
         if command == Command.HELLO and b == "relay":  # the host's challenge, passed to a real driver elsewhere
@@ -79,6 +81,7 @@ ATTACKS = {  # behaviour: what the failed driver's line says
     "replay": "driver claiming serial SIM-000002 at address 2 failed the challenge: its HELLO's MAC is not that driver's",
     "relay": "driver claiming serial SIM-000009 at address 2 failed the challenge: its HELLO's MAC is not that driver's",
     "protocol-1": "speaks protocol 1, whose HELLO is unauthenticated (serial, version and image hash are its own word)",
+    "no-mac": "answered the challenge without a MAC (serial, version and image hash are its own word)",
 }
 
 
@@ -143,7 +146,7 @@ def _check_batch(out: str, err: str, code: int, journal: Path, why: str) -> None
     assert code == 3 and len(lines) == 3, out + err
     assert "R01C01: driver SIM-000001: flashed, verified" in lines[0]
     assert "R01C03: driver SIM-000003: flashed, verified" in lines[2]  # the batch went on
-    status = "unauthenticated" if "protocol 1" in why else "failed"
+    status = "unauthenticated" if "own word" in why else "failed"
     assert lines[1].startswith("[2/3] R01C02: driver ") and f"{status}, NOT verified" in lines[1], lines[1]
     assert why in lines[1], lines[1]
     assert err.splitlines() == [f"vlp-flash: 1 driver(s) failed and keep their previous configuration: R01C02; "
