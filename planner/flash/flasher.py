@@ -299,7 +299,8 @@ def _sessions(link: Link, address: int, image: bytes, site_key: bytes, versions:
             break
         except DeadlineError:
             result = replace(result, message=f"driver {_who(result, address)} gave no result within its "
-                                             f"{link.deadline - started if link.deadline else 0:.0f} s deadline"
+                                             f"{(link.deadline or started) - started:g} s deadline "
+                                             "(--driver-deadline-s)"
                                              + (f" (last: {result.message})" if result.message else ""))
             break
         except LinkError as exc:

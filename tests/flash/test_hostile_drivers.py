@@ -196,9 +196,10 @@ def test_every_attempt_has_a_ceiling_and_each_driver_a_deadline():
     port = serial.serial_for_url(f"sim://?key={KEY.hex()}&faults=stall=1,stall_s=0.05", timeout=0.1)
     link = Link(port)
     assert link.timeout_s(80, 80, driver_s=(2**32 - 1) * 1e-6 * 65537) == MAX_ATTEMPT_S  # 12.8 days asked
-    result = flash_driver(link, 1, PLAN_IMAGE, KEY, deadline_s=0.2)  # every answer 50 ms late: never in time
+    result = flash_driver(link, 1, PLAN_IMAGE, KEY, deadline_s=0.12)  # answers 50 ms late: COMMIT never starts in time
     assert result.status == "failed" and not result.verified
-    assert "gave no result within its 0 s deadline" in result.message or "deadline" in result.message
+    assert "driver SIM-000001 gave no result within its 0.12 s deadline (--driver-deadline-s)" in result.message \
+        or "driver at address 1 gave no result within its 0.12 s deadline" in result.message, result.message
     assert link.deadline is None  # the next driver starts afresh
     port.close()
 
