@@ -271,13 +271,16 @@ def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
     ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""
     from planner._files import read_bytes
-    from planner.flash.keys import KEY_FILE_MAX_BYTES, site_key_from
+    from planner.flash.keys import KEY_FILE_MAX_BYTES, readable_by_all, site_key_from
 
     if path:
         try:
             raw = read_bytes(path, "key file", "cannot read (no such file)", max_bytes=KEY_FILE_MAX_BYTES)
         except InputError as exc:
             raise UsageError(f"--key-file {exc}") from None
+        if readable_by_all(path):
+            print(f"warning: --key-file {path} is readable by every user of this machine: chmod 600 {path}",
+                  file=sys.stderr)
         where, from_file = f"--key-file {path}", True
     elif env and os.environ.get("VLP_SITE_KEY"):
         raw, where, from_file = os.environ["VLP_SITE_KEY"].encode("utf-8", "surrogateescape"), "VLP_SITE_KEY", False
