@@ -327,3 +327,28 @@ def test_a_forged_or_edited_journal_is_refused_and_resume_skips_nothing_on_its_w
         assert "is not sealed under this site key" in err and "vlp-flash --verify-only rebuilds it" in err
         assert json.loads(journal.read_text()) == edited  # refused before anything: no driver flashed, no entry
     assert Journal(journal, doc["plan_hash"]).entries  # read without the key (vlp-report), unchecked
+
+
+def test_interactive_mode_shows_the_driver_that_answered_and_refuses_the_wrong_one(plans, tmp_path):
+    """The installer plugs R01C01's driver again for R01C02: it is named before anything is written, and refused."""
+    journal, flash = tmp_path / "j.json", tmp_path / "flash"
+    url = f"sim://?key={KEY.hex()}&flash={flash}"
+    outs = []
+    for name in ("R01C01", "R01C02"):
+        master, slave = os.openpty()
+        os.write(master, b"\n")
+        got = subprocess.run([str(BIN / "vlp-flash"), str(plans / "a" / "plan.yaml"), name, "--port", url,
+                              "--key-file", str(plans / "key"), "--journal", str(journal)], stdin=slave,
+                             capture_output=True, text=True, timeout=60)
+        os.close(master)
+        os.close(slave)
+        outs.append((got.returncode, got.stdout))
+    assert outs[0][0] == 0 and "driver SIM-000001 answered (proved its key; runs version 0); R01C01 has no " \
+                                "driver bound yet" in outs[0][1]
+    code, out = outs[1]
+    assert code == 3 and "driver SIM-000001 answered (proved its key; runs version 1); R01C02 has no driver " \
+                         "bound yet: refused" in out
+    assert "R01C02: driver SIM-000001: failed, NOT verified" in out and "is bound to luminaire R01C01" in out
+    entries = _entries(journal)
+    assert entries["R01C01"]["verified"] and not entries["R01C02"]["verified"]
+    assert entries["R01C02"]["bound_serial"] == ""
