@@ -1,12 +1,16 @@
 """Flashing one driver: choose the version, sign for that driver, transfer, verify, commit, confirm.
 
 Safe by construction: the host signs only the image the plan gives (rebuilt by the
-caller from ``plan.yaml``), at the version it chooses from what the driver reports
-(docs/flashing.md, image versions), with the key of the serial the driver reports
+caller from ``plan.yaml``), only for a driver that has just proved its serial by
+answering a fresh challenge with a MAC under that serial's key (protocol v2,
+docs/protocol.md section 7) and that the caller accepts (the journal's binding), at the
+version the host decides (docs/flashing.md, image versions), with that driver's key
 (:func:`~planner.flash.keys.driver_key`). The image goes into the driver's inactive
-slot, is read back by hash before the commit and confirmed active after it; an
-interrupted transfer resumes from what the driver reports. Whatever happens, the
-result says what the driver last reported it holds (asked again after a failure).
+slot, is read back by hash before the commit and confirmed active by a new challenge;
+an interrupted transfer resumes from what the driver reports. Every reply is bounded
+(sizes, fields, progress, timeouts, a deadline), so a hostile driver fails alone.
+Whatever happens, the result says what the driver last proved it holds (asked again
+after a failure).
 """
 
 from __future__ import annotations

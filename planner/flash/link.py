@@ -2,8 +2,9 @@
 
 Stop and wait (docs/protocol.md section 3): a request is resent with the same
 sequence number until its response arrives or the retries run out; damaged frames,
-other drivers' answers and stale responses are skipped. Works on any pyserial
-``Serial`` (a real port, ``sim://``, a pseudo-terminal).
+other drivers' answers and stale responses are skipped. Every attempt's timeout is
+capped (:data:`MAX_ATTEMPT_S`) and a :attr:`Link.deadline` ends all requests to a driver.
+Works on any pyserial ``Serial`` (a real port, ``sim://``, a pseudo-terminal).
 """
 
 from __future__ import annotations
