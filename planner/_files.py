@@ -20,16 +20,26 @@ if TYPE_CHECKING:
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml: 20x faster on large plans
 
 
-def read_text(path: str | Path, what: str, missing: str = "no such file") -> str:
-    """The UTF-8 text of ``path`` (a byte-order mark is dropped); a missing file, a folder or
-    another encoding raises :class:`InputError` naming the file, the byte and what to do."""
+def read_bytes(path: str | Path, what: str, missing: str = "no such file", max_bytes: int | None = None) -> bytes:
+    """The bytes of ``path``, at most ``max_bytes`` read (more is an :class:`InputError`: ``/dev/zero``,
+    a wrong file); a missing file or a folder is an :class:`InputError` too."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as f:
+            data = f.read() if max_bytes is None else f.read(max_bytes + 1)
     except FileNotFoundError:
         raise InputError(f"{path}: {missing}") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    if max_bytes is not None and len(data) > max_bytes:
+        raise InputError(f"{path}: more than {max_bytes:,} bytes, too large for a {what}; check the file name")
+    return data
+
+
+def read_text(path: str | Path, what: str, missing: str = "no such file", max_bytes: int | None = None) -> str:
+    """The UTF-8 text of ``path`` (a byte-order mark is dropped; at most ``max_bytes``); a missing file, a
+    folder, a larger file or another encoding raises :class:`InputError` naming the file, the byte and what to do."""
+    data = read_bytes(path, what, missing, max_bytes)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -51,11 +61,11 @@ def load_yaml(path: str | Path, missing: str = "no such file"):
         raise InputError(f"{path}:{line} not valid YAML ({what})") from exc
 
 
-def load_json(path: str | Path, what: str, missing: str = "no such file"):
-    """Parse the JSON file ``path``; a missing file, another encoding, bad JSON or nesting too deep for
-    the parser raises :class:`InputError` naming the file (and line)."""
+def load_json(path: str | Path, what: str, missing: str = "no such file", max_bytes: int | None = None):
+    """Parse the JSON file ``path`` (at most ``max_bytes``); a missing file, another encoding, bad JSON or
+    nesting too deep for the parser raises :class:`InputError` naming the file (and line)."""
     path = Path(path)
-    text = read_text(path, what, missing)
+    text = read_text(path, what, missing, max_bytes)
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:

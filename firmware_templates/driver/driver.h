@@ -1,4 +1,4 @@
-/* The reference luminaire driver for protocol v1 (docs/protocol.md), ATmega328P at 16 MHz.
+/* The reference luminaire driver for protocol v2 (docs/protocol.md), ATmega328P at 16 MHz.
  * EEPROM memory map (1,024 bytes; docs/firmware.md "Reference driver firmware"):
  *
  *   0x000  provisioning: magic "VLPK", bus address u16, 0 u16, serial 16 bytes (ASCII, NUL-padded),

@@ -1,6 +1,7 @@
-/* Protocol v1, driver side (docs/protocol.md), mirroring planner/flash/sim/driver.py: framing
- * checks, the seq answer cache, HELLO / BEGIN / WRITE / VERIFY / COMMIT, A/B slots in EEPROM
- * with the commit record written last, the staging header for resume, and the image checks
+/* Protocol v2, driver side (docs/protocol.md), mirroring planner/flash/sim/driver.py: framing
+ * checks, the answer cache (same seq, command and CRC: a retry), HELLO answering the host's challenge
+ * with an HMAC-SHA256 under this driver's own key, BEGIN / WRITE / VERIFY / COMMIT, A/B slots in
+ * EEPROM with the commit record written last, the staging header for resume, and the image checks
  * (hash, format, HMAC-SHA256 under this driver's own key, rollback). */
 #include <avr/eeprom.h>
 #include <avr/pgmspace.h>
@@ -36,9 +37,11 @@ static uint8_t active_slot, staging_slot, have_staging, begun;
 static entry_t active, staging;
 static uint16_t staged;
 
-/* The last request's seq and command and its response packet (docs/protocol.md section 3). */
+/* The last request's seq, command and CRC, and its response packet (docs/protocol.md section 3). */
 static uint8_t have_last, last_seq, last_cmd;
-static uint8_t resp[96];
+static uint32_t last_crc;
+static uint8_t resp[112]; /* the longest answer: HELLO with its MAC, 7 + 99 + 4 bytes */
+static const uint8_t hello_label[13] = "VLP hello v2"; /* and its NUL: wire.HELLO_MAC_LABEL */
 static uint16_t resp_len;
 static uint32_t detail;
 static uint8_t image[IMG_BYTES];
@@ -177,12 +180,28 @@ void driver_boot(void)
 
 /* Commands: each fills resp + 7 with its payload and returns its length, or sets detail and
  * returns a negative status. */
-static int16_t cmd_hello(uint16_t n, uint8_t *out)
+/* HMAC-SHA256 under this driver's key of label | nonce | address u16 | the 67 bytes of fields, into mac. */
+static __attribute__((noinline)) void hello_mac(const uint8_t *nonce, const uint8_t *fields, uint8_t *mac)
 {
-    if (n != 0) {
+    hmac_ctx h;
+    uint8_t address[2];
+    address[0] = (uint8_t)me.address;
+    address[1] = (uint8_t)(me.address >> 8);
+    hmac_init(&h, me.key, sizeof me.key);
+    sha256_update(&h.inner, hello_label, sizeof hello_label);
+    sha256_update(&h.inner, nonce, 16);
+    sha256_update(&h.inner, address, 2);
+    sha256_update(&h.inner, fields, 67);
+    hmac_final(&h, mac);
+}
+
+/* An empty HELLO: the 67 bytes of fields; a challenge (16-byte nonce): the fields and their MAC. */
+static int16_t cmd_hello(const uint8_t *in, uint16_t n, uint8_t *out)
+{
+    if (n != 0 && n != 16) {
         return -BAD_REQUEST;
     }
-    out[0] = 1;
+    out[0] = 2;
     out[1] = 0x07; /* A/B slots, resume, HMAC-SHA256 */
     out[2] = (uint8_t)VLP_MAX_BLOCK;
     out[3] = (uint8_t)(VLP_MAX_BLOCK >> 8);
@@ -198,7 +217,11 @@ static int16_t cmd_hello(uint16_t n, uint8_t *out)
     } else {
         memset(out + 35, 0, 32);
     }
-    return 67;
+    if (n == 0) {
+        return 67;
+    }
+    hello_mac(in, out, out + 67);
+    return 99;
 }
 
 static int16_t cmd_begin(const uint8_t *in, uint16_t n, uint8_t *out)
@@ -455,11 +478,12 @@ void driver_frame(uint8_t *frame, uint16_t n)
         return; /* a response, or another driver's request */
     }
     cmd = frame[4];
-    if (!(have_last && frame[3] == last_seq && cmd == last_cmd)) {
+    crc = le32(frame + size - 4u);
+    if (!(have_last && frame[3] == last_seq && cmd == last_cmd && crc == last_crc)) {
         const uint8_t *in = frame + 7;
         detail = 0;
         switch (cmd) {
-        case HELLO: result = cmd_hello(length, out); break;
+        case HELLO: result = cmd_hello(in, length, out); break;
         case BEGIN: result = cmd_begin(in, length, out); break;
         case WRITE: result = cmd_write(in, length, out); break;
         case VERIFY: result = cmd_verify(length, out); break;
@@ -482,12 +506,12 @@ void driver_frame(uint8_t *frame, uint16_t n)
         resp[4] = cmd;
         resp[5] = (uint8_t)result;
         resp[6] = 0;
-        crc = crc32_end(crc32_add(CRC32_START, resp, 7u + (uint16_t)result));
-        put32(resp + 7 + result, crc);
+        put32(resp + 7 + result, crc32_end(crc32_add(CRC32_START, resp, 7u + (uint16_t)result)));
         resp_len = (uint16_t)(11 + result);
         have_last = 1;
         last_seq = frame[3];
         last_cmd = cmd;
+        last_crc = crc;
     }
     send_cobs(resp, resp_len);
 }

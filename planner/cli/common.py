@@ -36,7 +36,7 @@ from planner.defaults import (
     PRINCIPAL_ERROR_PX,
     UNIT_TO_M,
 )
-from planner.errors import ExitCode, PlannerError, UsageError
+from planner.errors import ExitCode, InputError, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera import Camera
@@ -270,13 +270,17 @@ def output_file(flag: str, value: str | None) -> Path | None:
 def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
     ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""
-    from planner.flash.keys import site_key_from
+    from planner._files import read_bytes
+    from planner.flash.keys import KEY_FILE_MAX_BYTES, readable_by_all, site_key_from
 
     if path:
         try:
-            raw = Path(path).read_bytes()
-        except OSError as exc:
-            raise UsageError(f"--key-file {path}: cannot read ({exc.strerror or exc})") from None
+            raw = read_bytes(path, "key file", "cannot read (no such file)", max_bytes=KEY_FILE_MAX_BYTES)
+        except InputError as exc:
+            raise UsageError(f"--key-file {exc}") from None
+        if readable_by_all(path):
+            print(f"warning: --key-file {path} is readable by every user of this machine: chmod 600 {path}",
+                  file=sys.stderr)
         where, from_file = f"--key-file {path}", True
     elif env and os.environ.get("VLP_SITE_KEY"):
         raw, where, from_file = os.environ["VLP_SITE_KEY"].encode("utf-8", "surrogateescape"), "VLP_SITE_KEY", False

@@ -46,6 +46,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--extra-timeout-ms", type=cli.at_most(10_000.0, strict=False), default=0.0, metavar="MS",
                    help="added to every request's timeout: for USB adapters with a latency timer, radio links or "
                    "emulated drivers on a busy machine (default 0, at most 10000)")
+    p.add_argument("--driver-deadline-s", type=cli.at_most(3600.0), default=120.0, metavar="S",
+                   help="time one driver may take, retries included, before it is reported failed and the batch "
+                   "goes on (default 120, at most 3600)")
     p.add_argument("--bus", action="store_true", help="batch mode: all drivers on one multi-drop bus, no prompts")
     p.add_argument("--bus-map", metavar="CSV", help="with --bus: 'name,address' rows (default: plan order, from 1)")
     p.add_argument("--key-file", metavar="FILE", help="site key, hex or raw bytes (or env VLP_SITE_KEY, hex)")
@@ -56,6 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "be updated again; drivers refuse one not above what they run); default: one above "
                         "the version each driver runs, at least the version in the plan's images, and never over "
                         "a newer image the journal shows came after this plan's (docs/flashing.md)")
+    p.add_argument("--replace-driver", action="store_true",
+                   help="let a driver other than the one bound to a luminaire in the journal take its image (a "
+                   "replaced driver), or a driver bound to another luminaire move (journaled); without it both are "
+                   "refused")
     p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
     p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
     p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
@@ -83,17 +90,29 @@ def open_port(url: str, baud: int):
     try:
         return serial.serial_for_url(url, baudrate=baud, timeout=0.1, exclusive=True)
     except (serial.SerialException, ValueError, OSError) as exc:
-        text = str(exc)
-        if "lock" in text.lower() or "busy" in text.lower():
+        text = str(exc).replace(url, shown_port(url))  # pyserial may quote the URL, key and all
+        if not isinstance(exc, protocol_sim.SimUrlError) and ("lock" in text.lower() or "busy" in text.lower()):
             raise UsageError(f"--port {shown_port(url)}: busy: another program holds it; close it and retry") from None
         raise UsageError(f"--port {shown_port(url)}: cannot open ({text}); serial ports here: {_ports_text()}") from None
 
 
+SHOWN_PARAMETERS = ("drivers", "first", "prefix", "flash", "faults", "paced", "slot_size", "max_block",
+                    "block_write_us", "protocol")
+"""``sim://`` parameters whose values are shown; any other (``key``, a misspelt ``kye``) shows as ``<hidden>``."""
+
+
 def shown_port(url: str) -> str:
-    """``url`` as messages, the journal and ``--json`` show it: a ``sim://`` URL's key is never written out."""
+    """``url`` as messages, the journal and ``--json`` show it: a ``sim://`` URL's key is never written out, nor
+    the value of any parameter but the known harmless ones (a misspelt ``key`` stays hidden)."""
     head, sep, query = url.partition("?")
-    items = [("key=<hidden>" if urllib.parse.unquote_plus(item.partition("=")[0]).strip().lower() == "key" else item)
-             for item in query.split("&")]
+    if head.lower().startswith("sim://") and head[6:]:  # a sim:// URL has nothing before its query: a key pasted?
+        head = "sim://<hidden>"
+    items = []
+    for item in query.split("&") if sep else []:
+        name, eq, _ = item.partition("=")
+        plain = urllib.parse.unquote_plus(name).strip().lower()
+        items.append(item if plain in SHOWN_PARAMETERS or not eq else
+                     f"{plain if plain.isidentifier() else '<hidden>'}=<hidden>")
     return head + sep + "&".join(items)
 
 
@@ -149,6 +168,23 @@ def _versions(journal: Journal, e: Entry, image: bytes, explicit: int | None) ->
                     journal=journal.last_verified(e.name))
 
 
+def _acceptor(journal: Journal, name: str, args, say):
+    """flash_driver's ``accept``: the journal's binding of luminaires to drivers (``--replace-driver`` lifts it);
+    in interactive mode the installer sees which driver answered before anything is written."""
+    shown: set[str] = set()
+
+    def accept(hello) -> str | None:
+        refusal = None if args.replace_driver else journal.refusal(name, hello.serial)
+        if not args.bus and hello.serial not in shown:
+            shown.add(hello.serial)
+            bound = journal.bound(name)
+            print(f"  driver {hello.serial} answered (proved its key; runs version {hello.active_version}); "
+                  + (f"{name} is bound to {bound}" if bound else f"{name} has no driver bound yet")
+                  + (": refused" if refusal else ""), file=say, flush=True)
+        return refusal
+    return accept
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.list_ports:
@@ -178,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     where = read_bus_map(plan, args.bus_map) if args.bus else {}
     if args.bus and (absent := [e.name for e in targets if e.name not in where]):
         raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
-    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest)
+    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest, key)
     if args.dry_run:
         for e in targets:
             skip = args.resume and journal.verified(e.name, args.image_version) is not None
@@ -215,7 +251,8 @@ def main(argv: list[str] | None = None) -> int:
                     continue
             address = where.get(name, ANY_ADDRESS)
             result = flash_driver(link, address, image, key, _versions(journal, e, image, args.image_version),
-                                  verify_only=args.verify_only)
+                                  verify_only=args.verify_only, deadline_s=args.driver_deadline_s,
+                                  accept=_acceptor(journal, name, args, say))
             journal.record(name, e.id, f"{shown}@{address}" if args.bus else shown, result)
             text = f"{result.status}, {'verified' if result.verified else 'NOT verified'}"
             version = f"version {result.image_version}, " if result.image_version else ""

@@ -19,6 +19,9 @@ from planner.errors import InputError
 if TYPE_CHECKING:
     from planner.plan_file import PlanFile
 
+MAX_BYTES = 8 << 20
+"""Most bytes of a bus map read (65,534 rows of a 100-character name fit)."""
+
 
 class BusMapRow(BaseModel):
     """One ``--bus-map`` row: a luminaire of the plan and its driver's bus address."""
@@ -35,7 +38,7 @@ def read_bus_map(plan: PlanFile, path: str | None) -> dict[str, int]:
     if not path:
         return {e.name: k + 1 for k, e in enumerate(plan.luminaires)}
     out: dict[str, int] = {}
-    text = read_text(path, "bus map", "no such bus map (--bus-map)")
+    text = read_text(path, "bus map", "no such bus map (--bus-map)", max_bytes=MAX_BYTES)
     for n, row in enumerate(csv.reader(text.splitlines()), 1):
         if not row or row[0].startswith("#") or row[0] == "name":
             continue

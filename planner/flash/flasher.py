@@ -1,18 +1,23 @@
 """Flashing one driver: choose the version, sign for that driver, transfer, verify, commit, confirm.
 
 Safe by construction: the host signs only the image the plan gives (rebuilt by the
-caller from ``plan.yaml``), at the version it chooses from what the driver reports
-(docs/flashing.md, image versions), with the key of the serial the driver reports
+caller from ``plan.yaml``), only for a driver that has just proved its serial by
+answering a fresh challenge with a MAC under that serial's key (protocol v2,
+docs/protocol.md section 7) and that the caller accepts (the journal's binding), at the
+version the host decides (docs/flashing.md, image versions), with that driver's key
 (:func:`~planner.flash.keys.driver_key`). The image goes into the driver's inactive
-slot, is read back by hash before the commit and confirmed active after it; an
-interrupted transfer resumes from what the driver reports. Whatever happens, the
-result says what the driver last reported it holds (asked again after a failure).
+slot, is read back by hash before the commit and confirmed active by a new challenge;
+an interrupted transfer resumes from what the driver reports. Every reply is bounded
+(sizes, fields, progress, timeouts, a deadline), so a hostile driver fails alone.
+Whatever happens, the result says what the driver last proved it holds (asked again
+after a failure).
 """
 
 from __future__ import annotations
 
 import hashlib
 import hmac
+import secrets
 import struct
 import time
 import zlib
@@ -23,7 +28,7 @@ from planner.defaults import MAX_IMAGE_VERSION
 from planner.errors import PlannerError
 from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image, parse_config_image
 from planner.flash.keys import driver_key
-from planner.flash.link import Link, LinkError
+from planner.flash.link import MAX_ATTEMPT_S, DeadlineError, Link, LinkError
 from planner.flash.wire import (
     BEGIN_REPLY,
     BEGIN_REQUEST,
@@ -31,13 +36,16 @@ from planner.flash.wire import (
     CAP_HMAC,
     CAP_RESUME,
     COMMIT_REQUEST,
-    PROTOCOL_VERSION,
+    NONCE_BYTES,
     VERIFY_REPLY,
     WRITE_HEAD,
     WRITE_REPLY,
     Command,
     Hello,
     Status,
+    WireError,
+    hello_mac,
+    unpack_reply,
 )
 
 SESSIONS = 3
@@ -48,6 +56,18 @@ ASK_AFTER_FAILURE = 2
 
 FINAL = (Status.AUTH, Status.ROLLBACK, Status.IMAGE, Status.TOO_LARGE)
 """Refusals of the image itself: retrying cannot help."""
+
+DRIVER_DEADLINE_S = 120.0
+"""Default time one driver may take, all sessions and retries included [s] (vlp-flash --driver-deadline-s)."""
+
+ASK_GRACE_S = 2 * MAX_ATTEMPT_S
+"""Time the HELLO after a failure may take once the driver's deadline has passed [s]."""
+
+HELLO_MAC_S = 0.1
+"""Driver time for a HELLO challenge [s]: the reference AVR driver computes its HMAC-SHA256 in about 30 ms."""
+
+STALLED_WRITES = 4
+"""WRITE answers in a row that stage nothing new before the transfer is given up (a peer answering "0 bytes")."""
 
 
 def sign_image(image: bytes, key: bytes) -> bytes:
@@ -63,26 +83,38 @@ def at_version(image: bytes, version: int) -> bytes:
     return config_image(f["name"], f["id"], f["chips"], f["chip_rate_hz"], f["plan_hash"], image_version=version)
 
 
+VERSION_STEP = 100
+"""Most a driver's claimed version may exceed what the host knows (plan images, journal) and still be followed."""
+
+
 @dataclass(frozen=True)
 class Versions:
-    """Which version to sign (docs/flashing.md, image versions).
+    """Which version to sign (docs/flashing.md, image versions): the host decides, from the plan and the journal.
 
     ``explicit`` (``--image-version``): exactly that one, the driver refuses it if not newer.
-    Otherwise the version follows the driver: one above the version it runs, at least ``floor``
-    (the version in the plan's image files); and if ``journal`` (serial, version) says this plan's
-    image was verified on this very driver, a newer image found there since is not replaced.
+    Otherwise one above the version the driver runs, at least ``floor`` (the version in the plan's image
+    files); the driver's claim is followed only up to :data:`VERSION_STEP` above what the host knows
+    (``floor``, and ``journal``: (serial, version) of this plan's image last verified on this luminaire),
+    so no peer's claim pushes the signed version up (a version burn). If ``journal`` says this plan's image
+    was verified on this very driver, a newer image found there since is not replaced.
     """
 
     floor: int = 1
     explicit: int | None = None
     journal: tuple[str, int] | None = None
 
+    @property
+    def known(self) -> int:
+        """The highest version the host itself knows of for this luminaire."""
+        return max(self.floor, self.journal[1] if self.journal else 0)
+
 
 @dataclass(frozen=True)
 class FlashResult:
     """What happened to one driver, and what it last reported holding."""
 
-    status: str  # "flashed", "current" (already held this image), "verified" (verify-only), "failed"
+    status: str  # "flashed", "current" (already held this image), "verified" (verify-only), "failed",
+    # "unauthenticated" (a protocol v1 driver: it cannot prove who it is, so nothing is signed for it)
     serial: str = ""
     image_sha256: str = ""  # the signed image meant for this driver ("" if it never answered)
     image_version: int = 0
@@ -97,13 +129,40 @@ class _Refused(PlannerError):
     """The host will not sign for this driver (a rollback, a version out of bounds)."""
 
 
-def _hello(link: Link, address: int) -> Hello:
-    hello = Hello.unpack(link.request(address, Command.HELLO, response_bytes=80).payload)
+class _Unauthenticated(PlannerError):
+    """A protocol v1 driver: its HELLO proves nothing, so the host signs nothing for it."""
+
+    def __init__(self, hello: Hello):
+        why = (f"speaks protocol {hello.protocol}, whose HELLO is unauthenticated" if hello.protocol < 2 else
+               "answered the challenge without a MAC")
+        super().__init__(f"{why} (serial, version and image hash are its own word): vlp-flash signs nothing for it "
+                         "and cannot verify it; update its firmware to protocol 2")
+        self.hello = hello
+
+
+def _hello(link: Link, address: int, site_key: bytes) -> Hello:
+    """The driver's HELLO, proved (protocol v2): it answers a fresh nonce with a MAC under the key of the serial
+    it reports, over the nonce, its bus address and every field (docs/protocol.md section 7). A MAC that does
+    not check is :class:`LinkError` (status AUTH); a v1 driver is :class:`_Unauthenticated`."""
+    nonce = secrets.token_bytes(NONCE_BYTES)
+    try:
+        reply = link.request(address, Command.HELLO, nonce, response_bytes=120, driver_s=HELLO_MAC_S)
+    except LinkError as exc:
+        if exc.status != Status.BAD_REQUEST:
+            raise
+        reply = link.request(address, Command.HELLO, response_bytes=80)  # a v1 driver takes no challenge
+        raise _Unauthenticated(Hello.unpack(reply.payload)) from None
+    hello = Hello.unpack(reply.payload)  # bounds checked
+    if not hello.mac:
+        raise _Unauthenticated(hello)
     need = CAP_AB_SLOTS | CAP_RESUME | CAP_HMAC
-    if hello.protocol != PROTOCOL_VERSION or hello.capabilities & need != need:
-        raise LinkError(f"driver {hello.serial} speaks protocol {hello.protocol} with capabilities "
-                        f"{hello.capabilities:#04x}; vlp-flash needs protocol {PROTOCOL_VERSION} with A/B slots, "
+    if hello.capabilities & need != need:
+        raise LinkError(f"driver {hello.serial} has capabilities {hello.capabilities:#04x}; vlp-flash needs A/B slots, "
                         "resume and HMAC (update the driver's firmware)")
+    if not hmac.compare_digest(hello_mac(_key(site_key, hello.serial), nonce, reply.address, hello.body()), hello.mac):
+        raise LinkError(f"driver claiming serial {hello.serial} at address {reply.address} failed the challenge: its "
+                        "HELLO's MAC is not that driver's (an impostor or a replayed answer, or a driver provisioned "
+                        "from another site key): nothing signed for it", Status.AUTH)
     return hello
 
 
@@ -130,6 +189,10 @@ def _choose_version(hello: Hello, versions: Versions) -> int:
         raise _Refused(f"runs version {running}, flashed after this plan's image (version {versions.journal[1]}, "
                        f"journal): this plan is older than what the driver runs; flash the newer plan, or give "
                        f"--image-version {running + 1} to put this plan's image back deliberately")
+    if running > versions.known + VERSION_STEP:
+        raise _Refused(f"claims to run version {running:,}, more than {VERSION_STEP} above the {versions.known:,} this "
+                       "host knows for it (plan images, journal): vlp-flash does not follow such a claim; check which "
+                       "driver this is, or give --image-version N to choose the version deliberately")
     version = max(versions.floor, running + 1)
     if version > MAX_IMAGE_VERSION:
         raise _Refused(f"runs version {running:,}, and vlp-flash signs versions up to {MAX_IMAGE_VERSION:,} only: "
@@ -139,47 +202,82 @@ def _choose_version(hello: Hello, versions: Versions) -> int:
 
 def _transfer(link: Link, address: int, hello: Hello, image: bytes, version: int, sha: bytes,
               progress: Callable[[int, int], None] | None) -> None:
-    block_s = hello.block_write_us * 1e-6
-    erase_s = (-(-hello.slot_size // max(hello.max_block, 1)) + 1) * block_s  # BEGIN may erase the whole slot
+    block_s = hello.block_write_us * 1e-6  # HELLO bounds it; the link caps every attempt as well
+    erase_s = (-(-hello.slot_size // hello.max_block) + 1) * block_s  # BEGIN may erase the whole slot
     reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 0), driver_s=erase_s)
-    offset, crc = BEGIN_REPLY.unpack(reply.payload[:BEGIN_REPLY.size])
+    offset, crc = unpack_reply(BEGIN_REPLY, reply.payload, "BEGIN")
     if offset > len(image) or crc != zlib.crc32(image[:offset]):
         reply = link.request(address, Command.BEGIN, BEGIN_REQUEST.pack(len(image), version, sha, 1), driver_s=erase_s)
         offset = 0
+    stalled = 0
     while offset < len(image):
         chunk = image[offset:offset + hello.max_block]
         try:
             reply = link.request(address, Command.WRITE, WRITE_HEAD.pack(offset) + chunk, driver_s=block_s)
-            offset = WRITE_REPLY.unpack(reply.payload[:WRITE_REPLY.size])[0]
+            staged = unpack_reply(WRITE_REPLY, reply.payload, "WRITE")[0]
         except LinkError as exc:
             if exc.status != Status.OFFSET:
                 raise
-            offset = exc.detail  # the driver holds fewer (or more) bytes: continue from there
+            staged = exc.detail  # the driver holds fewer (or more) bytes: continue from there
+        stalled = stalled + 1 if staged <= offset else 0
+        if stalled >= STALLED_WRITES:
+            raise LinkError(f"driver {hello.serial} staged nothing new in {stalled} WRITEs at offset {offset} "
+                            f"(it answers {staged} bytes staged): the transfer makes no progress")
+        offset = staged
         if progress:
             progress(min(offset, len(image)), len(image))
     verify = link.request(address, Command.VERIFY, driver_s=block_s)  # the driver hashes what it reads back
-    staged, digest = VERIFY_REPLY.unpack(verify.payload[:VERIFY_REPLY.size])
+    staged, digest = unpack_reply(VERIFY_REPLY, verify.payload, "VERIFY")
     if staged != len(image) or digest != sha:
         raise LinkError(f"driver {hello.serial} read back {staged} bytes hashing to {digest.hex()[:16]}..., "
                         f"not the image ({len(image)} bytes, {sha.hex()[:16]}...)", Status.HASH)
     link.request(address, Command.COMMIT, COMMIT_REQUEST.pack(sha), driver_s=2 * block_s)
 
 
+Accept = Callable[[Hello], str | None]
+"""Asked with a driver's proved HELLO before anything is signed for it: a refusal message, or None to go on."""
+
+
 def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions = Versions(), *,
-                 verify_only: bool = False, progress: Callable[[int, int], None] | None = None) -> FlashResult:
-    """Bring the driver at ``address`` to the plan's ``image`` (unsigned; or, ``verify_only``, check it runs it)."""
+                 verify_only: bool = False, progress: Callable[[int, int], None] | None = None,
+                 deadline_s: float = DRIVER_DEADLINE_S, accept: Accept | None = None) -> FlashResult:
+    """Bring the driver at ``address`` to the plan's ``image`` (unsigned; or, ``verify_only``, check it runs it)
+    within ``deadline_s`` [s]. Only a driver that proves its serial (protocol v2) and that ``accept`` takes
+    gets an image signed. Whatever the peer answers, this returns a result: a reply that breaks the protocol,
+    no progress, a failed challenge or the deadline fail this driver only, in one line."""
     started = time.perf_counter()
+    result, wrote = FlashResult("failed"), False
+    link.deadline = started + deadline_s
+    try:
+        result, wrote = _sessions(link, address, image, site_key, versions, verify_only, progress, started, accept)
+    finally:
+        link.deadline = None
+    if result.verified or result.status == "unauthenticated":
+        return replace(result, seconds=time.perf_counter() - started)
+    link.deadline = time.perf_counter() + ASK_GRACE_S
+    try:
+        return _asked(link, address, image, site_key, result, wrote, verify_only, started, accept)
+    finally:
+        link.deadline = None
+
+
+def _sessions(link: Link, address: int, image: bytes, site_key: bytes, versions: Versions, verify_only: bool,
+              progress: Callable[[int, int], None] | None, started: float,
+              accept: Accept | None) -> tuple[FlashResult, bool]:
+    """Up to :data:`SESSIONS` attempts: the result (verified, or the last failure) and whether bytes were sent."""
     result, wrote = FlashResult("failed"), False
     for _ in range(SESSIONS):
         try:
-            hello = _hello(link, address)
+            hello = _hello(link, address, site_key)
             key = _key(site_key, hello.serial)
             result = replace(result, serial=hello.serial, active_version=hello.active_version,
                              active_sha256=hello.active_sha256.hex())
+            if accept is not None and (refusal := accept(hello)):
+                raise _Refused(refusal)
             if _runs_plan(hello, image, key):
                 status = "verified" if verify_only else "flashed" if wrote else "current"
                 return replace(result, status=status, image_sha256=result.active_sha256, verified=True, message="",
-                               image_version=hello.active_version, seconds=time.perf_counter() - started)
+                               image_version=hello.active_version, seconds=time.perf_counter() - started), wrote
             if verify_only:
                 result = replace(result, message="the driver holds another image")
                 break
@@ -197,6 +295,18 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
         except _Refused as exc:
             result = replace(result, message=str(exc))
             break
+        except _Unauthenticated as exc:
+            return replace(result, status="unauthenticated", serial=exc.hello.serial, message=str(exc),
+                           active_version=exc.hello.active_version, active_sha256=exc.hello.active_sha256.hex()), wrote
+        except WireError as exc:  # a reply that breaks the protocol: retrying the same peer cannot help
+            result = replace(result, message=f"driver {_who(result, address)} answered outside the protocol: {exc}")
+            break
+        except DeadlineError:
+            result = replace(result, message=f"driver {_who(result, address)} gave no result within its "
+                                             f"{(link.deadline or started) - started:g} s deadline "
+                                             "(--driver-deadline-s)"
+                                             + (f" (last: {result.message})" if result.message else ""))
+            break
         except LinkError as exc:
             message = str(exc)
             if exc.status == Status.ROLLBACK:
@@ -205,19 +315,25 @@ def flash_driver(link: Link, address: int, image: bytes, site_key: bytes, versio
             result = replace(result, message=message)
             if exc.status in FINAL:
                 break
-    return _asked(link, address, image, site_key, result, wrote, verify_only, started)
+    return result, wrote
+
+
+def _who(result: FlashResult, address: int) -> str:
+    return result.serial or ("(any)" if address == 0xFFFF else f"at address {address}")
 
 
 def _asked(link: Link, address: int, image: bytes, site_key: bytes, result: FlashResult, wrote: bool,
-           verify_only: bool, started: float) -> FlashResult:
+           verify_only: bool, started: float, accept: Accept | None) -> FlashResult:
     """``result`` after a failure, with what the driver now reports (it may run the new image after all). A
     driver that never answered is asked too: it may have lost power in the midst of HELLO and booted since."""
     for _ in range(ASK_AFTER_FAILURE):
         try:
-            hello = _hello(link, address)
+            hello = _hello(link, address, site_key)
+            if accept is not None and accept(hello):
+                return replace(result, seconds=time.perf_counter() - started)  # not this luminaire's driver
             held = _runs_plan(hello, image, _key(site_key, hello.serial))
             break
-        except (LinkError, _Refused):
+        except (LinkError, WireError, _Refused, _Unauthenticated):
             continue
     else:  # silent: what it runs is unknown (it may have taken the image before it fell silent)
         unknown = "; it did not answer afterwards, so what it runs is unknown" if wrote else ""

@@ -11,11 +11,16 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import os
+import stat
+from pathlib import Path
 
 DRIVER_KEY_LABEL = b"VLP driver key v1\x00"
 DRIVER_KEY_BYTES = 32
 SITE_KEY_BYTES = (16, 64)
 """Fewest and most bytes of a site key (docs/protocol.md)."""
+KEY_FILE_MAX_BYTES = 4096
+"""Most bytes read from a key file: 64 bytes in hex with any whitespace fit many times over."""
 
 
 def site_key_from(data: bytes, *, raw: bool = True) -> bytes:
@@ -40,3 +45,24 @@ def driver_key(site_key: bytes, serial: str) -> bytes:
     if not serial.isascii() or not 0 < len(serial) <= 16:
         raise ValueError(f"driver serial {serial!r} must be 1 to 16 ASCII characters")
     return hmac.new(site_key, DRIVER_KEY_LABEL + serial.encode("ascii"), hashlib.sha256).digest()
+
+
+JOURNAL_KEY_LABEL = b"VLP journal key v1\x00"
+
+
+def journal_key(site_key: bytes) -> bytes:
+    """The key sealing as-built journal entries: HMAC-SHA256(site key, "VLP journal key v1" NUL), never a
+    driver key (a driver's serial is never that label), so no driver can seal a journal entry."""
+    return hmac.new(site_key, JOURNAL_KEY_LABEL, hashlib.sha256).digest()
+
+
+def readable_by_all(path: str | Path) -> bool:
+    """True if every user of this machine can read the key file ``path``: the file is readable by others and
+    every folder above it searchable by others (a file in a private folder is not exposed)."""
+    p = Path(path).resolve()
+    try:
+        if not p.stat().st_mode & stat.S_IROTH:
+            return False
+        return all(os.stat(folder).st_mode & stat.S_IXOTH for folder in p.parents)
+    except OSError:
+        return False

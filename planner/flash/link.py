@@ -2,8 +2,9 @@
 
 Stop and wait (docs/protocol.md section 3): a request is resent with the same
 sequence number until its response arrives or the retries run out; damaged frames,
-other drivers' answers and stale responses are skipped. Works on any pyserial
-``Serial`` (a real port, ``sim://``, a pseudo-terminal).
+other drivers' answers and stale responses are skipped. Every attempt's timeout is
+capped (:data:`MAX_ATTEMPT_S`) and a :attr:`Link.deadline` ends all requests to a driver.
+Works on any pyserial ``Serial`` (a real port, ``sim://``, a pseudo-terminal).
 """
 
 from __future__ import annotations
@@ -13,10 +14,12 @@ import time
 from dataclasses import dataclass, field
 
 from planner.errors import PlannerError, UsageError
-from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status, WireError, decode, encode, parse_error
+from planner.flash.wire import FLAG_RESPONSE, Command, Deframer, Packet, Status, encode, parse_error
 
 RETRIES = 4
 BASE_TIMEOUT_S = 0.020
+MAX_ATTEMPT_S = 10.0
+"""Ceiling of one attempt's timeout [s], whatever a driver's HELLO claims (``--extra-timeout-ms`` comes on top)."""
 
 
 class LinkError(PlannerError):
@@ -26,6 +29,10 @@ class LinkError(PlannerError):
         super().__init__(message)
         self.status = status
         self.detail = detail
+
+
+class DeadlineError(LinkError):
+    """The driver's deadline (:attr:`Link.deadline`) passed: no more requests to it."""
 
 
 class PortLost(UsageError):
@@ -53,6 +60,7 @@ class Link:
         self.baud = baud
         self.retries = retries
         self.extra_timeout_s = extra_timeout_s  # added to every attempt: adapters with latency, emulated drivers
+        self.deadline: float | None = None  # time.perf_counter() after which no request starts or waits
         self._seqs: dict[int, int] = {}
         self.seq = 0
         self.stats = LinkStats()
@@ -63,8 +71,10 @@ class Link:
         return n_bytes * 10 / self.baud
 
     def timeout_s(self, request_bytes: int, response_bytes: int, driver_s: float = 0.0) -> float:
-        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work (+ ``extra_timeout_s``)."""
-        return BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s + self.extra_timeout_s
+        """Protocol section 3: 20 ms + twice the line time both ways + the driver's work, at most
+        :data:`MAX_ATTEMPT_S` (+ ``extra_timeout_s``)."""
+        protocol_s = BASE_TIMEOUT_S + 2 * self.line_time_s(request_bytes + response_bytes) + driver_s
+        return min(protocol_s, MAX_ATTEMPT_S) + self.extra_timeout_s
 
     def request(self, address: int, command: Command, payload: bytes = b"", *, response_bytes: int = 80,
                 driver_s: float = 0.0) -> Packet:
@@ -79,6 +89,8 @@ class Link:
         self.stats.by_command[command.name] = self.stats.by_command.get(command.name, 0) + 1
         try:
             for attempt in range(self.retries + 1):
+                if self.deadline is not None and time.perf_counter() >= self.deadline:
+                    raise DeadlineError(f"driver {_addr(address)} passed its deadline during {command.name}")
                 if attempt:
                     self.stats.retries += 1
                 try:
@@ -103,6 +115,8 @@ class Link:
 
     def _await(self, address: int, command: Command, timeout: float) -> Packet | None:
         deadline = time.perf_counter() + timeout
+        if self.deadline is not None:
+            deadline = min(deadline, self.deadline)
         while True:
             left = deadline - time.perf_counter()
             if left <= 0:
@@ -112,12 +126,9 @@ class Link:
             if not data:
                 continue
             self.stats.bytes_received += len(data)
-            for frame in self._deframer.feed(data):
-                try:
-                    p = decode(frame)
-                except WireError:
-                    self.stats.dropped_frames += 1
-                    continue
+            packets, dropped = self._deframer.packets(data)
+            self.stats.dropped_frames += dropped
+            for p in packets:
                 if (p.flags & FLAG_RESPONSE and p.seq == self.seq and p.command == command
                         and (p.address == address or address == 0xFFFF)):
                     return p

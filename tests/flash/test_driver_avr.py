@@ -32,10 +32,12 @@ from planner.flash.avr.runner import AvrBus
 from planner.flash.avr.trace import read_light
 from planner.flash.keys import driver_key
 from planner.flash.link import Link, LinkError
+from planner.flash.sim import protocol_sim
 from planner.flash.sim.driver import SimulatedDriver
 from planner.flash.wire import (
     BEGIN_REPLY,
     BEGIN_REQUEST,
+    FLAG_RESPONSE,
     VERIFY_REPLY,
     WRITE_HEAD,
     WRITE_REPLY,
@@ -271,6 +273,51 @@ def test_driver_refuses_foreign_tampered_and_older_images(plans, tmp_path):
     assert _plays(tmp_path / "trace" / "1.vcd", [(frame_format, old), (frame_format, new)]) == new
 
 
+def test_the_firmware_proves_its_hello_and_an_impostor_replaying_it_is_never_verified(plans, tmp_path):
+    """Protocol v2 in C: the firmware answers the host's nonce with the HMAC the Python model gives (under its
+    own key, over nonce, address and fields); vlp-flash's verdict rests on it. A peer replaying that answer,
+    or holding another site's key, gets nothing signed and is never verified."""
+    from planner.flash.flasher import flash_driver
+    from planner.flash.sim.bus import SimBus
+    from planner.flash.wire import hello_mac
+
+    unsigned = (plans / "a" / "firmware" / "R01C01" / "vlp_config.bin").read_bytes()
+    with AvrBus(1, KEY, tmp_path / "eeprom").start() as bus, serial.Serial(bus.port, BAUD, timeout=0.05) as port:
+        link = Link(port, BAUD, retries=RETRIES, extra_timeout_s=EMULATOR_SLACK_MS / 1000)
+        flashed = flash_driver(link, 1, unsigned, KEY)
+        assert (flashed.status, flashed.verified, flashed.serial) == ("flashed", True, "AVR-000001")
+        nonce = bytes(range(16))
+        reply = link.request(1, Command.HELLO, nonce, driver_s=0.1)
+        model = SimulatedDriver(1, "AVR-000001", KEY, slot_size=256, max_block=128, block_write_us=435_200)
+        hello = Hello.unpack(reply.payload)
+        assert (hello.protocol, hello.active_version, len(reply.payload)) == (2, 1, 99)
+        assert hello.mac == hello_mac(driver_key(KEY, "AVR-000001"), nonce, 1, reply.payload[:67])
+        assert hello.mac == hello_mac(model._key, nonce, 1, reply.payload[:67])
+        again = link.request(1, Command.HELLO, bytes(16), driver_s=0.1)  # another nonce: another MAC
+        assert again.payload[:67] == reply.payload[:67] and again.payload[67:] != reply.payload[67:]
+        other_site = flash_driver(link, 1, unsigned, bytes(32), deadline_s=30)
+        assert not other_site.verified and "failed the challenge" in other_site.message
+    assert (tmp_path / "eeprom" / "AVR-000001.eeprom").stat().st_mode & 0o777 == 0o600  # it holds the driver key
+    protocol_sim.register()
+    fake = serial.serial_for_url(f"sim://?key={KEY.hex()}&prefix=AVR-", timeout=0.1)
+    impostor = fake.bus.drivers[0]  # blank, at address 1, claiming AVR-000001: it answers with the recording
+    recorded = encode(Packet(1, FLAG_RESPONSE, 0, Command.HELLO, reply.payload))
+    asked: list[int] = []
+
+    def replay(packet: Packet) -> bytes:
+        asked.append(packet.command)
+        return encode(Packet(1, FLAG_RESPONSE, packet.seq, packet.command, reply.payload)) \
+            if packet.command == Command.HELLO else recorded
+
+    impostor._answer = replay
+    fake.bus = SimBus([impostor])
+    for verify_only in (True, False):
+        result = flash_driver(Link(fake), 1, unsigned, KEY, verify_only=verify_only)
+        assert result.status == "failed" and not result.verified and "failed the challenge" in result.message
+    assert asked and set(asked) == {Command.HELLO}  # it was never sent an image, signed or not
+    fake.close()
+
+
 def test_transfer_resumes_after_a_power_cut(plans, tmp_path):
     image = _signed(_image(_config(plans, "a", "R01C01"), 1), driver_key(KEY, "AVR-000001"))
     sha = hashlib.sha256(image).digest()
@@ -416,8 +463,8 @@ def test_firmware_answers_as_the_python_model_does(plans, tmp_path):
                 offset = rng.choice([max(0, staged - 40), staged + 8, rng.randrange(len(image))])
                 request(Command.WRITE, WRITE_HEAD.pack(offset) + image[offset:offset + rng.randrange(130)])
             elif roll < 0.20:
-                request(rng.choice([Command.HELLO, Command.VERIFY, Command.COMMIT, 9]), rng.choice([b"", b"\x01"]),
-                        rng.choice([1, 0xFFFF, 2]))
+                request(rng.choice([Command.HELLO, Command.VERIFY, Command.COMMIT, 9]),
+                        rng.choice([b"", b"\x01", rng.randbytes(16)]), rng.choice([1, 0xFFFF, 2]))
 
         order = [images[k] for k in (0, 1, 2, 3, 4, 5)] + images[6:] + rng.sample(images, len(images)) * 2
         for image in order:
@@ -433,7 +480,7 @@ def test_firmware_answers_as_the_python_model_does(plans, tmp_path):
                 request(Command.VERIFY)
             request(Command.COMMIT, hashlib.sha256(image).digest() if rng.random() < 0.9 else bytes(32))
             noise(image)
-            request(Command.HELLO)
+            request(Command.HELLO, rng.randbytes(16))  # the challenge: the same MAC from C and Python
     assert model.stats.repeats >= 5 and outcomes["COMMIT"] >= 3, outcomes
     assert set(outcomes) >= {s.name for s in Status if s != Status.FLASH} | {c.name for c in Command}, outcomes
 

@@ -38,6 +38,7 @@ from planner.flash.wire import (
     Status,
     decode,
     encode,
+    hello_mac,
     parse_error,
 )
 
@@ -117,7 +118,7 @@ def driver(flash: Flash | None = None, key: bytes = KEY) -> SimulatedDriver:
 
 def test_hello_of_a_blank_driver():
     h = Client(driver()).hello()
-    assert (h.protocol, h.capabilities, h.max_block, h.slot_size, h.block_write_us) == (1, 7, BLOCK, SLOT, 500)
+    assert (h.protocol, h.capabilities, h.max_block, h.slot_size, h.block_write_us) == (2, 7, BLOCK, SLOT, 500)
     assert (h.serial, h.active_slot, h.active_version, h.active_sha256) == ("SIM-000001", 0, 0, bytes(32))
 
 
@@ -183,6 +184,29 @@ def test_older_or_same_version_other_image_is_refused_as_rollback():
         c.write_from(older, 0)
         assert c.refused(Command.COMMIT, sha(older)) == (Status.ROLLBACK, 3)
     assert c.hello().active_sha256 == sha(make_image(3))
+
+
+def test_a_challenge_is_answered_with_a_mac_under_the_drivers_own_key_over_nonce_address_and_fields():
+    d = driver()
+    c = Client(d)
+    c.flash(make_image(1))
+    for nonce in (bytes(16), bytes(range(16))):
+        payload = c.ok(Command.HELLO, nonce)
+        h = Hello.unpack(payload)
+        assert len(payload) == 99 and h.protocol == 2 and h.active_version == 1 and h.active_sha256 == d.active_sha256
+        assert h.mac == hello_mac(driver_key(KEY, "SIM-000001"), nonce, 1, payload[:67])
+        assert h.mac != hello_mac(driver_key(KEY, "SIM-000001"), nonce, 2, payload[:67])  # bound to its address
+    # the same seq and command with another nonce is a new request, not a retry: a fresh MAC
+    first, second = c.raw(Command.HELLO, bytes(16), seq=9), c.raw(Command.HELLO, b"\x01" * 16, seq=9)
+    assert first != second and d.stats.repeats == 0
+    assert c.refused(Command.HELLO, b"\x01" * 15)[0] == Status.BAD_REQUEST
+
+
+def test_a_protocol_1_driver_takes_no_challenge():
+    d = SimulatedDriver(1, "SIM-000001", KEY, Flash(SLOT), max_block=BLOCK, protocol=1)
+    assert Client(d).refused(Command.HELLO, bytes(16))[0] == Status.BAD_REQUEST
+    h = Client(d).hello()
+    assert (h.protocol, h.mac) == (1, b"")
 
 
 def test_a_repeated_request_is_answered_from_the_seq_cache_not_executed():

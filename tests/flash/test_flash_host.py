@@ -134,12 +134,11 @@ def test_versions_follow_the_driver_and_a_true_rollback_is_refused_with_a_hint()
     stale = flash_driver(link, 1, PLAN_IMAGE, KEY, Versions(journal=("SIM-000001", 1)))
     assert stale.status == "failed" and "older than what the driver runs" in stale.message
     assert "--image-version 3" in stale.message and d.active_version == 2
-    wrong = flash_driver(link, 1, replan, b"k" * 32, Versions(explicit=5))
-    assert wrong.status == "failed" and "AUTH" in wrong.message and d.active_version == 2
+    wrong = flash_driver(link, 1, replan, b"k" * 32, Versions(explicit=5))  # another site's key: no proof, no image
+    assert wrong.status == "failed" and "failed the challenge" in wrong.message and d.active_version == 2
     back = flash_driver(link, 1, PLAN_IMAGE, KEY, Versions(explicit=3))  # the deliberate way back
     assert (back.status, d.active_version) == ("flashed", 3)
-    assert (wrong.active_version, wrong.active_sha256) == (2, hashlib.sha256(
-        sign_image(at_version(replan, 2), driver_key(KEY, "SIM-000001"))).hexdigest())  # what it really held
+    assert (wrong.serial, wrong.active_version, wrong.active_sha256) == ("", 0, "")  # nothing unproved is kept
     port.close()
 
 
@@ -165,7 +164,7 @@ def test_versions_are_bounded_far_below_2_to_the_32(plans, tmp_path):
     result = flash_driver(Link(port), 1, PLAN_IMAGE, KEY, Versions(floor=MAX_IMAGE_VERSION))
     assert (result.status, result.image_version) == ("flashed", MAX_IMAGE_VERSION)
     replan = config_image("L1", 5, "0111000110011010", 12600.0, "fedcba9876543210")
-    beyond = flash_driver(Link(port), 1, replan, KEY)  # a re-plan would need version 1,000,001
+    beyond = flash_driver(Link(port), 1, replan, KEY, Versions(floor=MAX_IMAGE_VERSION))  # would need 1,000,001
     assert beyond.status == "failed" and "up to 1,000,000" in beyond.message
     port.close()
 
@@ -383,6 +382,7 @@ def test_interactive_mode_asks_for_each_driver_on_a_terminal(plans, tmp_path):
     os.close(slave)
     assert proc.returncode == 0, proc.stderr
     assert "plug the driver of R01C01 (ID" in proc.stdout and "plug the driver of R01C02" in proc.stdout
+    assert "driver SIM-000001 answered (proved its key; runs version 0); R01C01 has no driver bound yet" in proc.stdout
     assert proc.stdout.count("flashed, verified") == 1
     assert list(_entries(tmp_path / "j.json")) == ["R01C01"]
 
@@ -405,3 +405,14 @@ def test_begin_gets_the_time_to_erase_a_whole_slot(monkeypatch):
     blocks = -(-d.slot_size // d.max_block)
     assert given["BEGIN"] == [pytest.approx((blocks + 1) * block_s)]
     assert given["WRITE"] == [pytest.approx(block_s)] * len(given["WRITE"]) and given["COMMIT"] == [pytest.approx(2 * block_s)]
+
+
+def test_a_protocol_1_driver_is_reported_unauthenticated_and_nothing_is_signed_for_it(plans, tmp_path, capsys):
+    journal = tmp_path / "j.json"
+    code = console_main([str(plans / "a" / "plan.yaml"), "R01C01", "--bus", "--key-file", str(plans / "key"),
+                         "--journal", str(journal), "--port", _url(1, extra="&protocol=1")])
+    out = capsys.readouterr().out
+    assert code == 3 and "R01C01: driver SIM-000001: unauthenticated, NOT verified" in out
+    assert "update its firmware to protocol 2" in out and len(out.splitlines()) == 1
+    e = _entries(journal)["R01C01"]
+    assert (e["status"], e["verified"], e["image_sha256"], e["image_version"]) == ("unauthenticated", False, "", 0)

@@ -46,10 +46,14 @@ def provision_block(address: int, serial: str, key: bytes) -> bytes:
 
 
 def provision(path: Path, address: int, serial: str, key: bytes) -> None:
-    """Make ``path`` a provisioned EEPROM (erased if new; an existing one keeps its slots)."""
+    """Make ``path`` a provisioned EEPROM (erased if new; an existing one keeps its slots), mode 0600: it holds
+    the driver's key."""
     try:
-        if not path.exists():
-            path.write_bytes(b"\xff" * EEPROM_BYTES)
+        if not path.exists():  # it holds the driver's key: readable by its owner only
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            with os.fdopen(fd, "wb") as f:
+                f.write(b"\xff" * EEPROM_BYTES)
+        os.chmod(path, 0o600)
         if path.stat().st_size != EEPROM_BYTES:
             raise UsageError(f"{path}: {path.stat().st_size} bytes, not a {EEPROM_BYTES}-byte EEPROM image; "
                              "move it away or use another --eeprom-dir")

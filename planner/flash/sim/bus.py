@@ -168,7 +168,7 @@ MAX_SIM_FLASH_BYTES = 1 << 30
 
 def make_bus(n_drivers: int, site_key: bytes, *, first_address: int = 1, serial_prefix: str = "SIM-",
              flash_dir: Path | str | None = None, slot_size: int = 4096, max_block: int = 256,
-             block_write_us: int = 2000, faults: Faults | None = None) -> SimBus:
+             block_write_us: int = 2000, faults: Faults | None = None, protocol: int = 2) -> SimBus:
     """``n_drivers`` at addresses ``first_address``.. with serials ``<prefix><address:06d>``.
 
     With ``flash_dir`` each driver's flash is the file ``<serial>.flash`` there (kept
@@ -202,7 +202,7 @@ def make_bus(n_drivers: int, site_key: bytes, *, first_address: int = 1, serial_
             serial = f"{serial_prefix}{address:06d}"
             flash = Flash(slot_size, folder / f"{serial}.flash" if folder is not None else None)
             drivers.append(SimulatedDriver(address, serial, site_key, flash, max_block=max_block,
-                                           block_write_us=block_write_us))
+                                           block_write_us=block_write_us, protocol=protocol))
             flash = None
     except UsageError as exc:
         for f in [d.flash for d in drivers] + ([flash] if flash else []):

@@ -30,6 +30,7 @@ from planner.flash.wire import (
     COMMIT_REQUEST,
     FLAG_ERROR,
     FLAG_RESPONSE,
+    NONCE_BYTES,
     PROTOCOL_VERSION,
     VERIFY_REPLY,
     WRITE_HEAD,
@@ -39,10 +40,9 @@ from planner.flash.wire import (
     Hello,
     Packet,
     Status,
-    WireError,
-    decode,
     encode,
     error_payload,
+    hello_mac,
 )
 
 __all__ = ["Flash", "PowerCut", "SimulatedDriver", "DriverStats"]
@@ -76,11 +76,12 @@ class SimulatedDriver:
     its serial (docs/protocol.md section 7), derived here; the site key itself is not kept.
 
     ``flash`` defaults to a RAM flash of ``slot_size`` (default 4096) bytes per slot; ``max_block`` is the
-    most data one WRITE may carry, ``block_write_us`` the programming time HELLO reports [us].
+    most data one WRITE may carry, ``block_write_us`` the programming time HELLO reports [us]. ``protocol``
+    2 (default) answers a HELLO's challenge with a MAC under its key; 1 is the unauthenticated version 1.
     """
 
     def __init__(self, address: int, serial: str, site_key: bytes, flash: Flash | None = None, *,
-                 slot_size: int | None = None, max_block: int = 256, block_write_us: int = 2000):
+                 slot_size: int | None = None, max_block: int = 256, block_write_us: int = 2000, protocol: int = 2):
         if not 1 <= address <= 0xFFFE:
             raise UsageError(f"driver address {address} must be in 1..65534")
         if not serial.isascii() or not 0 < len(serial) <= 16:
@@ -89,10 +90,13 @@ class SimulatedDriver:
             raise UsageError(f"site key of {len(site_key)} bytes; the protocol needs 16 to 64")
         if not 16 <= max_block <= 1016:
             raise UsageError(f"max block {max_block} bytes must be in 16..1016")
+        if protocol not in (1, PROTOCOL_VERSION):
+            raise UsageError(f"protocol {protocol}: the simulated driver speaks 1 and {PROTOCOL_VERSION}")
         if flash is not None and slot_size not in (None, flash.slot_size):
             raise UsageError(f"slot size {slot_size} disagrees with the flash's {flash.slot_size}")
         self.flash = flash if flash is not None else Flash(slot_size or 4096)
         self.address, self.serial, self.max_block, self.block_write_us = address, serial, max_block, block_write_us
+        self.protocol = protocol
         self.slot_size = self.flash.slot_size
         self._key = driver_key(bytes(site_key), serial)  # the site key is not kept
         self.stats = DriverStats()
@@ -104,7 +108,7 @@ class SimulatedDriver:
         self.stats.boots += 1
         self._down = False
         self._deframer = Deframer()
-        self._last: tuple[int, int, bytes] | None = None
+        self._last: tuple[tuple, bytes] | None = None  # the last request's fields, its response
         self._load()
 
     def _load(self) -> None:
@@ -145,7 +149,8 @@ class SimulatedDriver:
         return self._active.sha256 if self._active else NO_SHA
 
     def hello(self) -> Hello:
-        return Hello(PROTOCOL_VERSION, CAP_AB_SLOTS | CAP_RESUME | CAP_HMAC, self.max_block, self.slot_size,
+        """The HELLO fields (without a MAC)."""
+        return Hello(self.protocol, CAP_AB_SLOTS | CAP_RESUME | CAP_HMAC, self.max_block, self.slot_size,
                      self.block_write_us, FIRMWARE_VERSION, self.serial, self.active_slot, self.active_version,
                      self.active_sha256)
 
@@ -155,12 +160,9 @@ class SimulatedDriver:
         if self._down and data:
             self._boot()
         out = bytearray()
-        for frame in self._deframer.feed(data):
-            try:
-                packet = decode(frame)
-            except WireError:
-                self.stats.dropped += 1
-                continue
+        packets, dropped = self._deframer.packets(data)
+        self.stats.dropped += dropped
+        for packet in packets:
             if packet.is_response or packet.address not in (self.address, ANY_ADDRESS):
                 continue
             self.stats.frames += 1
@@ -173,9 +175,10 @@ class SimulatedDriver:
         return bytes(out)
 
     def _answer(self, packet: Packet) -> bytes:
-        if self._last and self._last[:2] == (packet.seq, packet.command):
+        request = (packet.address, packet.flags, packet.seq, packet.command, packet.payload)
+        if self._last and self._last[0] == request:  # a retry: the same request, byte for byte
             self.stats.repeats += 1
-            return self._last[2]
+            return self._last[1]
         self.stats.executed += 1
         flags = FLAG_RESPONSE
         try:
@@ -184,7 +187,7 @@ class SimulatedDriver:
             flags |= FLAG_ERROR
             payload = error_payload(refusal.status, refusal.detail, refusal.message)
         response = encode(Packet(self.address, flags, packet.seq, packet.command, payload))
-        self._last = (packet.seq, packet.command, response)
+        self._last = (request, response)
         return response
 
     def _execute(self, command: int, payload: bytes) -> bytes:
@@ -196,6 +199,11 @@ class SimulatedDriver:
 
     # Commands.
     def _hello(self, payload: bytes) -> bytes:
+        """Protocol v2: a challenge (the host's nonce) is answered with the fields and their MAC under this
+        driver's key, over the nonce, its address and the fields; an empty HELLO with the fields alone."""
+        if self.protocol >= 2 and len(payload) == NONCE_BYTES:
+            body = self.hello().body()
+            return body + hello_mac(self._key, payload, self.address, body)
         _size(payload, 0, "HELLO")
         return self.hello().pack()
 

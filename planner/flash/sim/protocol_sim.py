@@ -18,7 +18,8 @@ URL query parameters:
 - ``faults``: a fault spec (:meth:`planner.flash.sim.bus.Faults.parse`), e.g.
   ``corrupt=0.001,drop=0.0001,reset=0.01,power=0.01,stall=0.01,stall_s=0.5,seed=3``;
 - ``slot_size`` [bytes] (default 4096), ``max_block`` [bytes] (default 256) and
-  ``block_write_us`` [us] (default 2000): what every driver's HELLO reports.
+  ``block_write_us`` [us] (default 2000): what every driver's HELLO reports;
+- ``protocol``: 2 (default, HELLO answers the host's challenge) or 1 (unauthenticated, as old drivers).
 
 Unpaced, drivers answer at once (no line time); a stalled answer becomes readable ``stall_s``
 later. :meth:`Serial.read` blocks up to ``timeout`` like a real port. One thread per port.
@@ -38,7 +39,7 @@ from planner.flash.sim.bus import Faults, SimBus, SimConfigError, make_bus
 from planner.flash.wire import Command, WireError, decode
 
 PACKAGE = "planner.flash.sim"
-_INTS = {"drivers": 1, "first": 1, "slot_size": 4096, "max_block": 256, "block_write_us": 2000}
+_INTS = {"drivers": 1, "first": 1, "slot_size": 4096, "max_block": 256, "block_write_us": 2000, "protocol": 2}
 _PARAMS = (*_INTS, "key", "prefix", "flash", "faults", "paced")
 
 
@@ -75,7 +76,7 @@ def bus_from_url(url: str) -> SimBus:
     try:
         return make_bus(ints["drivers"], key, first_address=ints["first"], serial_prefix=one.get("prefix", "SIM-"),
                         flash_dir=one.get("flash") or None, slot_size=ints["slot_size"],
-                        max_block=ints["max_block"], block_write_us=ints["block_write_us"],
+                        max_block=ints["max_block"], block_write_us=ints["block_write_us"], protocol=ints["protocol"],
                         faults=Faults.parse(one.get("faults", "")))
     except SimConfigError as exc:
         raise SimUrlError(f"sim:// URL: {exc}") from None
