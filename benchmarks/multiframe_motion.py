@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from planner.defaults import TWIN_TOLERANCE_M  # noqa: E402
-from planner.plan_file import load_plan  # noqa: E402
+from planner.plan.file import load_plan  # noqa: E402
 from planner.twin.twin import Twin, covered_poses  # noqa: E402
 from planner.twin.video import VideoFormat, run_video_pose  # noqa: E402
 

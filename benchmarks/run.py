@@ -23,9 +23,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planner.camera import Camera  # noqa: E402
+from planner.camera.model import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire, check_layout  # noqa: E402
-from planner.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
+from planner.plan.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
 from planner.studies.efficiency import lattice_layout  # noqa: E402
 
 

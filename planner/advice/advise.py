@@ -9,7 +9,7 @@ whose camera sees a window of its receiver mode: three whole, non-collinear LEDs
 paper's rule, section 3), or two whole LEDs with gravity. The IDs are designed afterwards
 to make those windows unique, so this is the coverage a plan of the changed site
 can reach. Given the plan's frame limits, a change whose coverage reaches the goal is
-also checked to still fit its frames (:mod:`planner.advice_frames`): one that needs faster
+also checked to still fit its frames (:mod:`planner.advice.frames`): one that needs faster
 drivers says so, one that fits at no driver rate is not recommended. Every figure is
 sampled, never proved. ``docs/advice.md``.
 """
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.advice_changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
-from planner.advice_frames import FrameFit, FrameLimits, frame_fit, frame_text
+from planner.advice.changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
+from planner.advice.frames import FrameFit, FrameLimits, frame_fit, frame_text
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2
 from planner.verify.windows import working_area

@@ -1,4 +1,4 @@
-"""Candidate changes of a site for the advice (:mod:`planner.advice`): the site, its coverage measure per receiver
+"""Candidate changes of a site for the advice (:mod:`planner.advice.advise`): the site, its coverage measure per receiver
 mode, and the changes an integrator can make, knob by knob (receiver mode, camera profile, mounting height,
 density), each list from the least to the most change. ``docs/advice.md``.
 """
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.layout.model import area_m2, fill_outline
 from planner.verify.pair_windows import find_pairs
 from planner.verify.windows import find_windows, sample_poses, working_area
@@ -47,7 +47,7 @@ def window_coverage(site: Site, per_m2: float, seed: int) -> float:
 
 
 def pair_coverage(site: Site, per_m2: float, seed: int) -> float:
-    """Share of sampled poses that see two whole LEDs (the gravity receiver's window, ``planner.receivers``)."""
+    """Share of sampled poses that see two whole LEDs (the gravity receiver's window, ``planner.receivers.choice``)."""
     poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
     return float(find_pairs(poses, site.xyz, site.radii, site.camera).covered.mean())
 
@@ -73,7 +73,7 @@ class Change:
 def _camera_changes(site: Site) -> list[Change]:
     """The bundled phone profiles (``--camera NAME``) wider than the site's camera, held as the site's camera is
     (receiver heights, tilt)."""
-    from planner.camera_file import camera_profiles
+    from planner.camera.file import camera_profiles
 
     now = math.degrees(site.camera.hfov_rad)
     held = {k: getattr(site.camera, k) for k in ("min_height_m", "max_height_m", "max_tilt_rad")}

@@ -14,9 +14,9 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from planner._files import load_yaml
 from planner._schema import Positive, Text, validated
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.errors import InputError, UsageError
-from planner.plan_file import CameraFields
+from planner.plan.file import CameraFields
 
 PROFILES_FILE = "cameras.yaml"
 """The bundled profiles, in ``planner/data/``."""
@@ -96,7 +96,7 @@ def profile_rows() -> list[dict]:
 def read_camera(path: str | Path) -> Camera:
     """A camera from YAML: ``hfov_deg`` or intrinsics (``fx_px``...), image size, heights, tilt, row time.
 
-    The fields are checked by :class:`~planner.plan_file.CameraFields`, as a plan's ``camera`` section is.
+    The fields are checked by :class:`~planner.plan.file.CameraFields`, as a plan's ``camera`` section is.
     """
     path = Path(path)
     doc = load_yaml(path, "no such camera file")

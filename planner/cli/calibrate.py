@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from planner.calibration.chessboard import Board
-    from planner.camera import Camera
+    from planner.camera.model import Camera
 
 
 def build_parser() -> argparse.ArgumentParser:

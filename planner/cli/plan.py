@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         return _list_cameras(args.json)
     if not args.layout:
         parser.error("the following arguments are required: LAYOUT")
-    from planner.pipeline import (
+    from planner.plan.pipeline import (
         FirmwareOptions,
         PlanOptions,
         default_outdir,
@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     read_opts = cli.read_options(args)
     cli.progress(f"reading {args.layout}")
     layout = read_layout(args.layout, args.leds, read_opts)
-    from planner.budget import check_work, plan_work
+    from planner.plan.budget import check_work, plan_work
 
     work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
@@ -293,7 +293,7 @@ def _print_summary(s: dict) -> None:
 
 
 def _print_advice(a: dict) -> None:
-    from planner.advice import table, verdict
+    from planner.advice.advise import table, verdict
 
     print(f"  verdict  {verdict(a)}")
     if a["changes"]:
@@ -307,7 +307,7 @@ def _print_advice(a: dict) -> None:
 
 def _list_cameras(as_json: bool) -> int:
     """``--list-cameras``: the bundled profiles, as a table or JSON."""
-    from planner.camera_file import profile_rows
+    from planner.camera.file import profile_rows
 
     rows = profile_rows()
     if as_json:

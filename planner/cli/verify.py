@@ -45,10 +45,10 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     map_path = cli.output_file("--map", args.map)
 
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
 
     plan = load_plan(args.plan)
-    from planner.budget import check_work, verify_work
+    from planner.plan.budget import check_work, verify_work
 
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     xyz, radii, ids = plan.xyz, plan.radii, plan.ids
@@ -56,15 +56,15 @@ def main(argv: list[str] | None = None) -> int:
     recorded = (plan.verification.window_set if plan.verification else None) or {}
     install = args.install_tolerance if args.install_tolerance is not None else \
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
-    if plan.receiver_mode == "gravity":  # two-LED windows (planner.receivers)
-        from planner.receivers import verify_gravity
+    if plan.receiver_mode == "gravity":  # two-LED windows (planner.receivers.choice)
+        from planner.receivers.choice import verify_gravity
 
         result = verify_gravity(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
                                 tolerance_m=args.tolerance, install_tolerance_m=install)
     else:
         result = _verify_three(xyz, radii, ids, plan, camera, args, recorded, install)
     summary = result.summary(plan.names, limit=10)
-    from planner.advice import verdict
+    from planner.advice.advise import verdict
 
     judged = _standing(result, plan)
     summary.update(usable=judged["usable"], verdict=verdict(judged))
@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _standing(result, plan) -> dict:
     """The verdict's inputs from this verification: coverage, shares too few and ambiguous, the plan's goal."""
-    from planner.advice import standing
+    from planner.advice.advise import standing
     from planner.defaults import COVERAGE_GOAL
     from planner.verify.verify import AMBIGUOUS, TOO_FEW
 

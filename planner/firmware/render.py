@@ -23,7 +23,7 @@ import jinja2
 from planner._files import jinja_environment
 from planner.errors import InputError, UsageError
 from planner.firmware.image import config_image, pack_chips
-from planner.plan_file import Entry, PlanFile
+from planner.plan.file import Entry, PlanFile
 
 IMAGE_FILE = "vlp_config.bin"
 

@@ -17,7 +17,7 @@ from planner._schema import validated
 from planner.errors import InputError
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 
 class BusMapRow(BaseModel):

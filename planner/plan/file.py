@@ -2,7 +2,7 @@
 
 :func:`load_plan` checks every field a later stage reads (types, finite numbers, ranges,
 unique names, IDs within the code) and returns a :class:`PlanFile`; a stage then takes
-arrays and a :class:`~planner.camera.Camera` from it and never parses the mapping again.
+arrays and a :class:`~planner.camera.model.Camera` from it and never parses the mapping again.
 ``docs/plan-format.md`` documents the fields. Sections no stage computes with
 (``source``, ``graph``, ``schemes_considered``, ``verification.window_set``) are kept as
 mappings; keys this version does not read are kept too.
@@ -21,6 +21,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, model
 
 from planner._files import load_yaml
 from planner._schema import Coordinate, Count, Finite, Positive, Text, validated
+from planner.camera.lens import COEFFICIENTS, LENS_MODELS
 from planner.defaults import (
     LINE_CODE_NAMES,
     MAX_FOCAL_PX,
@@ -33,11 +34,10 @@ from planner.defaults import (
 )
 from planner.errors import InputError
 from planner.layout.model import name_problem
-from planner.lens import COEFFICIENTS, LENS_MODELS
-from planner.plan import FORMAT
+from planner.plan.model import FORMAT
 
 if TYPE_CHECKING:
-    from planner.camera import Camera
+    from planner.camera.model import Camera
 
 
 
@@ -128,7 +128,7 @@ class CameraFields(BaseModel):
         return self
 
     def to_camera(self) -> Camera:
-        from planner.camera import Camera
+        from planner.camera.model import Camera
 
         return Camera.from_dict(self.model_dump(exclude_none=True))
 

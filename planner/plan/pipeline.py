@@ -15,10 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.advice import COVERAGE_GOAL, Site, advise
-from planner.advice_frames import FrameLimits
-from planner.budget import plan_sample_per_m2
-from planner.camera import Camera
+from planner.advice.advise import COVERAGE_GOAL, Site, advise
+from planner.advice.frames import FrameLimits
+from planner.camera.model import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
 from planner.codes.schemes import assign_unique, assign_window
@@ -31,12 +30,13 @@ from planner.defaults import (
     VIDEO_FPS,
 )
 from planner.errors import InputError, UsageError
-from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
-from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
-from planner.plan import Plan, dump_plan, plan_document, plan_hash
-from planner.plan_file import plan_from_document
+from planner.modulation.frame import line_code
+from planner.modulation.timing import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
+from planner.plan.budget import plan_sample_per_m2
+from planner.plan.file import plan_from_document
+from planner.plan.model import Plan, dump_plan, plan_document, plan_hash
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.verify.proof import prove_window_set
@@ -238,7 +238,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         return assignment, verification, considered
 
     def plan_two():
-        from planner.receivers import plan_gravity
+        from planner.receivers.choice import plan_gravity
 
         return plan_gravity(xyz, radii, graph, cam, sample, scheme=options.scheme, per_m2=options.poses_per_m2,
                             seed=options.seed, time_budget=options.time_budget, tolerance_m=options.tolerance_m,
@@ -248,7 +248,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     if options.receiver == "three":
         assignment, verification, considered = plan_three()
     else:
-        from planner.receivers import AUTO_GOAL, ReceiverChoice, seen_shares
+        from planner.receivers.choice import AUTO_GOAL, ReceiverChoice, seen_shares
 
         planned = {}
         if options.receiver == "auto":
@@ -270,7 +270,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
     if receiver is not None and receiver.mode == "gravity":
-        from planner.receivers import smallest_pair_image_rows
+        from planner.receivers.choice import smallest_pair_image_rows
 
         rows = smallest_pair_image_rows(xyz, radii, cam, sample)
     else:

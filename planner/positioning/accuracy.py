@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.camera import Camera, Poses, rotation_from_angles
+from planner.camera.model import Camera, Poses, rotation_from_angles
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
 from planner.plot_style import save_png, styled

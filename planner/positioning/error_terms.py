@@ -34,7 +34,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from planner.camera import Camera, disc_dual_conic
+from planner.camera.ellipse import centre_and_shape, fit_ellipse
+from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import (
     DISTORTION_RESIDUAL_PX,
     FOCAL_ERROR_PCT,
@@ -44,7 +45,6 @@ from planner.defaults import (
     PHONE_TURN_DEG_S,
     PRINCIPAL_ERROR_PX,
 )
-from planner.ellipse import centre_and_shape, fit_ellipse
 from planner.positioning.observation import Sighting, seen_leds
 
 TERMS = {

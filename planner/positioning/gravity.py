@@ -10,7 +10,7 @@ the camera's plan position is ``x_a - s R(ψ) o_a`` and its height ``z_a - s``. 
 by least squares over the full pose on every identified LED's exact image against its ellipse
 (centre and shape, whitened by one pixel: the ellipses' sizes also measure the distance) and on
 the measured gravity (whitened by its uncertainty), so the gravity error is weighed, not trusted.
-Rays come from :meth:`planner.camera.Camera.rays`, so a distorting lens is handled.
+Rays come from :meth:`planner.camera.model.Camera.rays`, so a distorting lens is handled.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from planner.camera import Camera
+from planner.camera.ellipse import Ellipse
+from planner.camera.model import Camera
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, MAX_RESIDUAL_PX
-from planner.ellipse import Ellipse
 from planner.errors import PositioningError
 from planner.positioning.fix import Fix, observed, residuals_batch, rms
 from planner.positioning.undistort import ideal_ellipses

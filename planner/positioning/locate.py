@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.camera import Camera, disc_dual_conic
+from planner.camera.ellipse import Ellipse, centre_and_shape
+from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import MAX_RESIDUAL_PX
-from planner.ellipse import Ellipse, centre_and_shape
 from planner.errors import InputError, PositioningError
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
 from planner.positioning.paper import distance_weak_perspective, locate_paper
@@ -26,7 +26,7 @@ from planner.positioning.perspective import initial_poses, locate_perspective
 from planner.positioning.undistort import ideal_ellipses
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 SPACING_TOLERANCE = 0.35
 """Relative error allowed between a luminaire pair's spacing and its weak-perspective estimate."""

@@ -25,10 +25,10 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from planner._files import load_json
 from planner._schema import Count, Finite, Positive, validated
-from planner.camera import Camera
+from planner.camera.ellipse import Ellipse
+from planner.camera.lens import COEFFICIENTS, LENS_MODELS
+from planner.camera.model import Camera
 from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
-from planner.ellipse import Ellipse
-from planner.lens import COEFFICIENTS, LENS_MODELS
 from planner.positioning.locate import Snapshot
 
 

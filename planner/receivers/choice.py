@@ -14,13 +14,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from planner.camera import Camera, disc_image_rows
+from planner.camera.model import Camera, disc_image_rows
 from planner.codes.assignment import Assignment, assign_paper
 from planner.codes.pair_code import assign_pairs
 from planner.codes.schemes import assign_unique
 from planner.errors import PlanningError
 from planner.graph import NeighbourGraph
-from planner.modulation import timing_per_m2
+from planner.modulation.timing import timing_per_m2
 from planner.verify.pair_proof import prove_pair_set
 from planner.verify.pair_windows import (
     PosePairs,

@@ -1,6 +1,6 @@
 """The site report's content: summary figures, the ID bill and the installers' checklist in walking order.
 
-Pure computation on a loaded plan (:class:`~planner.plan_file.PlanFile`) and, once
+Pure computation on a loaded plan (:class:`~planner.plan.file.PlanFile`) and, once
 drivers have been flashed, the as-built journal's entries; the figures are
 drawn by :mod:`planner.report.figures` and the files written by
 :mod:`planner.report.files`.
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 if TYPE_CHECKING:
-    from planner.plan_file import Entry, PlanFile
+    from planner.plan.file import Entry, PlanFile
 
 ROW_TOLERANCE = 0.5
 """Luminaires whose y differs from a row's first by less than this share of the pitch walk in that row."""
@@ -142,7 +142,7 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
         rows.append(("verification", f"{100 * ver.coverage:.1f} % of {ver.poses} sampled poses decodable, "
                                      f"{ver.ambiguous} ambiguous"))
         if plan.advice:
-            from planner.advice import verdict
+            from planner.advice.advise import verdict
 
             rows.append(("verdict", verdict(plan.advice.model_dump())))
     else:
@@ -244,7 +244,7 @@ class AdviceSection:
 
 def advice_section(plan: PlanFile) -> AdviceSection | None:
     """The site advice of a verified plan (``plan.yaml``'s ``advice``), or None."""
-    from planner.advice import table, verdict
+    from planner.advice.advise import table, verdict
 
     if plan.advice is None:
         return None

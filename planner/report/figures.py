@@ -20,7 +20,7 @@ from planner.report.content import AdviceSection, BillLine, Stop
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
 
-    from planner.plan_file import Entry, ModulationFields, PlanFile
+    from planner.plan.file import Entry, ModulationFields, PlanFile
 
 TIMING_LUMINAIRES = 4
 """How many luminaires (with distinct IDs) the timing diagram shows."""

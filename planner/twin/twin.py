@@ -20,19 +20,19 @@ from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
-from planner.camera import Camera, Poses, disc_dual_conic, project_discs_at
+from planner.camera.ellipse import centre_and_shape
+from planner.camera.model import Camera, Poses, disc_dual_conic, project_discs_at
+from planner.decode.image import Blob, FrameFormat, decode_frame, read_blobs, snapshot
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, CONGRUENCE_TOLERANCE_M
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
-from planner.ellipse import centre_and_shape
 from planner.errors import InputError, PlannerError
 from planner.positioning.locate import Site, locate
 from planner.positioning.observation import seen_leds
-from planner.twin.receiver import Blob, FrameFormat, decode_frame, read_blobs, snapshot
 from planner.twin.render import Frame, Sensor, render_frame
 from planner.twin.video import VideoFormat, run_video_pose
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 STAGES = ("blobs", "ids", "identify", "position")
 

@@ -3,7 +3,7 @@
 1. **Render** ``k`` frames a video period ``T_v = 1 / video_fps`` apart: every
    luminaire's drive runs on, so frame ``j`` starts at phase ``phase_0 + j T_v rate``;
    the brightness factors stay (the same LEDs).
-2. **Track**: each LED blob of frame 0 (found by :func:`planner.twin.receiver.decode_frame`)
+2. **Track**: each LED blob of frame 0 (found by :func:`planner.decode.image.decode_frame`)
    is followed to the nearest blob of every later frame, within its own minor
    semi-axis (neighbouring LEDs lie at least a diameter apart).
 3. **Stitch**: each row of a tracked blob gives the drive at a known time,
@@ -15,7 +15,7 @@
    in) is read there, at its centre, into cyclic position ``slot mod frame_chips``.
    A slot read in two frames must agree; a slot read in none leaves a gap.
 4. **ID**: the cyclic frame (one unknown rotation of the driver's) goes to
-   :func:`planner.frame.decode_stream`, which finds the preamble in it.
+   :func:`planner.modulation.frame.decode_stream`, which finds the preamble in it.
 
 The receiver knows the site's chip rate and frame length, its own video rate,
 row time and exposure, as an app set up for the site does. docs/twin.md.
@@ -30,14 +30,14 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
+from planner.decode.image import Blob, FrameFormat, chord_rows, decode_frame, row_levels
 from planner.errors import InputError
-from planner.frame import decode_stream
-from planner.twin.receiver import Blob, FrameFormat, _row_levels, chord_rows, decode_frame
+from planner.modulation.frame import decode_stream
 from planner.twin.render import Frame, render_frame
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
     from planner.twin.twin import PoseResult, Twin
 
 SLOT_INSET_CHIPS = 0.25
@@ -89,7 +89,7 @@ def row_signal(image: np.ndarray, blob: Blob, blur_px: float) -> tuple[np.ndarra
     pad, margin = 4, 1.0 + blur_px
     x0, y0 = max(0, x - pad), max(0, y - pad)
     roi = image[y0:min(image.shape[0], y + h + pad), x0:min(image.shape[1], x + w + pad)]
-    levels = _row_levels(roi, blob.ellipse, x0, y0, margin)
+    levels = row_levels(roi, blob.ellipse, x0, y0, margin)
     rows = y0 + chord_rows(roi.shape[0], blob.ellipse, y0, margin)
     ok = np.isfinite(levels)
     return rows[ok], levels[ok]
