@@ -8,8 +8,9 @@ from conftest import ROOT
 from planner.cli import plan as plan_cli
 from planner.cli import verify as verify_cli
 from planner.errors import UsageError
+from planner.layout.read import read_layout
 from planner.plan import budget
-from planner.plan.pipeline import PlanOptions, make_plan, read_layout
+from planner.plan.pipeline import PlanOptions, make_plan
 from planner.verify import windows
 
 

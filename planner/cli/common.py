@@ -40,7 +40,7 @@ from planner.errors import ExitCode, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera.model import Camera
-    from planner.plan.pipeline import ReadOptions
+    from planner.layout.read import ReadOptions
 
 
 class Parser(argparse.ArgumentParser):
@@ -137,8 +137,8 @@ def add_reading_flags(p: argparse.ArgumentParser, title: str, what: str) -> None
 
 
 def read_options(args: argparse.Namespace) -> ReadOptions:
-    """The :class:`~planner.plan.pipeline.ReadOptions` the flags of :func:`add_reading_flags` ask for."""
-    from planner.plan.pipeline import ReadOptions
+    """The :class:`~planner.layout.read.ReadOptions` the flags of :func:`add_reading_flags` ask for."""
+    from planner.layout.read import ReadOptions
 
     return ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius,
                        args.room, args.storey)

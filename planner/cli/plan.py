@@ -124,14 +124,8 @@ def main(argv: list[str] | None = None) -> int:
         return _list_cameras(args.json)
     if not args.layout:
         parser.error("the following arguments are required: LAYOUT")
-    from planner.plan.pipeline import (
-        FirmwareOptions,
-        PlanOptions,
-        default_outdir,
-        make_plan,
-        read_layout,
-        write_outputs,
-    )
+    from planner.layout.read import read_layout
+    from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"

@@ -1,4 +1,4 @@
-"""Decode a camera frame as a receiver app does: LED blobs, ellipses, stripes, chips, IDs, a snapshot.
+"""Decode a camera frame as a receiver app does: LED blobs, ellipses, stripes, chips, IDs.
 
 1. **Blobs**: threshold above the dark ceiling, close the stripes' dark gaps
    vertically (the longest dark run a frame allows, in rows), and keep connected
@@ -35,7 +35,6 @@ from planner.camera.ellipse import Ellipse, fit_ellipse
 from planner.camera.model import Camera
 from planner.errors import InputError, PositioningError
 from planner.modulation.frame import LineCode, decode_stream, line_code
-from planner.positioning.locate import Snapshot
 
 if TYPE_CHECKING:
     from planner.plan.file import PlanFile
@@ -288,7 +287,7 @@ def read_blobs(blobs: list[Blob], camera: Camera) -> list[int]:
     return sorted(read, key=lambda k: _off_centre(blobs[k], camera))
 
 
-def _read(blob: Blob) -> tuple[int, Ellipse]:
+def read_ellipse(blob: Blob) -> tuple[int, Ellipse]:
     """A read blob's ID and ellipse (an ID is only read from a blob with an ellipse)."""
     assert blob.id is not None and blob.ellipse is not None
     return blob.id, blob.ellipse
@@ -296,15 +295,10 @@ def _read(blob: Blob) -> tuple[int, Ellipse]:
 
 def _off_centre(blob: Blob, camera: Camera) -> float:
     """Distance of the blob's centre from the principal point in ideal pixels (undistorted: by ray angle)."""
-    ellipse = _read(blob)[1]
+    ellipse = read_ellipse(blob)[1]
     if camera.distorted:
         u, v = camera.ideal_pixels(ellipse.centre)
         return math.hypot(u - camera.cx_px, v - camera.cy_px)
     return math.hypot(ellipse.cx - camera.cx_px, ellipse.cy - camera.cy_px)
 
 
-def snapshot(blobs: list[Blob], camera: Camera) -> Snapshot:
-    """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first
-    (distorted ellipses and the distorting camera: positioning undistorts them, :meth:`Snapshot.ideal`)."""
-    read = [_read(blobs[k]) for k in read_blobs(blobs, camera)]
-    return Snapshot(camera, [led_id for led_id, _ in read], [ellipse for _, ellipse in read])

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import yaml
 
 from planner import __version__
+from planner.plan.file import FORMAT
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.advice.advise import Advice
@@ -28,7 +29,6 @@ if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.receivers.choice import ReceiverChoice
     from planner.verify.verify import Verification
 
-FORMAT = "vlp-plan/1"
 _DECIMALS_M = 6
 
 

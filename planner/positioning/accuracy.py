@@ -304,7 +304,7 @@ def site_errors(xyz: np.ndarray, radii: np.ndarray, poses: Poses, camera: Camera
     ``gravity`` is the two-LED receiver: every pose draws the accelerometer's vertical (error
     ``terms.gravity_rad``, the twin's model), two whole LEDs suffice, the two whose rays are nearest
     the optical axis start the fix (its window) and every LED seen refines it."""
-    from planner.twin.twin import accelerometer  # the twin's accelerometer model, one for both
+    from planner.positioning.gravity import accelerometer  # the twin's accelerometer model too, one for both
 
     rngs = streams(seed)
     leds = installed(xyz, terms.install_m, rngs["install"])

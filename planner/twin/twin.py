@@ -22,14 +22,15 @@ import numpy as np
 
 from planner.camera.ellipse import centre_and_shape
 from planner.camera.model import Camera, Poses, disc_dual_conic, project_discs_at
-from planner.decode.image import Blob, FrameFormat, decode_frame, read_blobs, snapshot
+from planner.decode.image import Blob, FrameFormat, decode_frame, read_blobs, read_ellipse
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, CONGRUENCE_TOLERANCE_M
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from planner.errors import InputError, PlannerError
-from planner.positioning.locate import Site, locate
+from planner.positioning.gravity import accelerometer
+from planner.positioning.locate import Site, Snapshot, locate
 from planner.positioning.observation import seen_leds
 from planner.twin.render import Frame, Sensor, render_frame
-from planner.twin.video import VideoFormat, run_video_pose
+from planner.twin.video import VideoFormat, decode_video, shaken
 
 if TYPE_CHECKING:
     from planner.plan.file import PlanFile
@@ -75,15 +76,6 @@ class Twin:
     def window_leds(self) -> int:
         """LEDs the receiver's window needs: 2 with gravity, else 3."""
         return 2 if self.receiver == "gravity" else 3
-
-
-def accelerometer(rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
-    """The phone's measured down direction in the camera frame: the true one turned by a random
-    angle, each of its two components Gaussian with ``sigma_rad / sqrt 2`` (RMS error ``sigma_rad``)."""
-    g = rotation.T @ np.array([0.0, 0.0, -1.0])
-    perp = np.linalg.svd(g[None])[2][1:]
-    out = g + rng.normal(0.0, sigma_rad / math.sqrt(2), 2) @ perp
-    return out / np.linalg.norm(out)
 
 
 @dataclass(frozen=True)
@@ -256,3 +248,35 @@ def summary(results: list[PoseResult]) -> dict:
         "error_m": ({"median": float(np.median(errors)), "p90": float(np.percentile(errors, 90)),
                      "max": float(errors.max())} if len(errors) else None),
     }
+
+
+def snapshot(blobs: list[Blob], camera: Camera) -> Snapshot:
+    """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first
+    (distorted ellipses and the distorting camera: positioning undistorts them, :meth:`Snapshot.ideal`)."""
+    read = [read_ellipse(blobs[k]) for k in read_blobs(blobs, camera)]
+    return Snapshot(camera, [led_id for led_id, _ in read], [ellipse for _, ellipse in read])
+
+
+def render_video(twin: Twin, video: VideoFormat, positions: list[np.ndarray], rotations: list[np.ndarray],
+                 rng: np.random.Generator) -> list[Frame]:
+    """The ``video.frames`` consecutive frames, the camera at ``positions[j]``, ``rotations[j]`` in frame ``j``."""
+    lengths = np.array([len(c) for c in twin.chips], float)
+    phase = rng.uniform(0.0, lengths) if len(lengths) else np.zeros(0)
+    spread = twin.sensor.led_spread
+    gain = 1.0 + rng.uniform(-spread, spread, len(lengths))
+    advance = video.period_s * twin.modulation.chip_rate_hz
+    site = twin.site
+    return [render_frame(site.xyz, site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera, positions[j],
+                         rotations[j], twin.sensor, rng, phase_chips=np.mod(phase + j * advance, lengths), gain=gain)
+            for j in range(video.frames)]
+
+
+def run_video_pose(twin: Twin, video: VideoFormat, position: np.ndarray, rotation: np.ndarray, angles_deg,
+                   rng: np.random.Generator, tolerance_m: float, shake_rad: float = 0.0) -> tuple[PoseResult, Frame]:
+    """Render ``video.frames`` frames of a pose (still, or turned by ``shake_rad`` per frame), read the IDs over
+    them, locate from frame 0, grade against frame 0's pose."""
+    rotations = shaken(rotation, video.frames, shake_rad, rng) if shake_rad > 0 else [rotation] * video.frames
+    frames = render_video(twin, video, [position] * video.frames, rotations, rng)
+    blobs = decode_video([f.image for f in frames], twin.camera, twin.modulation, video,
+                         blur_px=twin.sensor.blur_px, exposure_s=twin.sensor.exposure_s)
+    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frames[0]

@@ -34,11 +34,9 @@ from planner.camera.model import Camera
 from planner.decode.image import Blob, FrameFormat, chord_rows, decode_frame, row_levels
 from planner.errors import InputError
 from planner.modulation.frame import decode_stream
-from planner.twin.render import Frame, render_frame
 
 if TYPE_CHECKING:
     from planner.plan.file import PlanFile
-    from planner.twin.twin import PoseResult, Twin
 
 SLOT_INSET_CHIPS = 0.25
 """A chip slot is read in a frame if its centre lies this far inside the frame's first and last rows."""
@@ -66,20 +64,6 @@ class VideoFormat:
             return None
         assert mod.video_fps is not None  # the plan reader checks it
         return cls(mod.video_frames, mod.video_fps)
-
-
-def render_video(twin: Twin, video: VideoFormat, positions: list[np.ndarray], rotations: list[np.ndarray],
-                 rng: np.random.Generator) -> list[Frame]:
-    """The ``video.frames`` consecutive frames, the camera at ``positions[j]``, ``rotations[j]`` in frame ``j``."""
-    lengths = np.array([len(c) for c in twin.chips], float)
-    phase = rng.uniform(0.0, lengths) if len(lengths) else np.zeros(0)
-    spread = twin.sensor.led_spread
-    gain = 1.0 + rng.uniform(-spread, spread, len(lengths))
-    advance = video.period_s * twin.modulation.chip_rate_hz
-    site = twin.site
-    return [render_frame(site.xyz, site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera, positions[j],
-                         rotations[j], twin.sensor, rng, phase_chips=np.mod(phase + j * advance, lengths), gain=gain)
-            for j in range(video.frames)]
 
 
 def row_signal(image: np.ndarray, blob: Blob, blur_px: float) -> tuple[np.ndarray, np.ndarray]:
@@ -194,14 +178,3 @@ def shaken(rotation: np.ndarray, frames: int, shake_rad: float, rng: np.random.G
     return out
 
 
-def run_video_pose(twin: Twin, video: VideoFormat, position: np.ndarray, rotation: np.ndarray, angles_deg,
-                   rng: np.random.Generator, tolerance_m: float, shake_rad: float = 0.0) -> tuple[PoseResult, Frame]:
-    """Render ``video.frames`` frames of a pose (still, or turned by ``shake_rad`` per frame), read the IDs over
-    them, locate from frame 0, grade against frame 0's pose."""
-    from planner.twin.twin import grade
-
-    rotations = shaken(rotation, video.frames, shake_rad, rng) if shake_rad > 0 else [rotation] * video.frames
-    frames = render_video(twin, video, [position] * video.frames, rotations, rng)
-    blobs = decode_video([f.image for f in frames], twin.camera, twin.modulation, video,
-                         blur_px=twin.sensor.blur_px, exposure_s=twin.sensor.exposure_s)
-    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frames[0]

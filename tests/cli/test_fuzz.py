@@ -29,8 +29,8 @@ from conftest import grid_xy
 from planner.camera.file import read_camera
 from planner.cli import plan
 from planner.errors import PlannerError
+from planner.layout.read import read_layout
 from planner.plan.file import load_plan
-from planner.plan.pipeline import read_layout
 from planner.positioning.snapshot_file import read_snapshot
 
 TIME_BOUND_S = 20.0

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from planner.plan.pipeline import PlanOptions, make_plan, read_layout
+from planner.layout.read import read_layout
+from planner.plan.pipeline import PlanOptions, make_plan
 from planner.plot_style import RC
 from planner.report.maps import coverage_figure, map_figure
 

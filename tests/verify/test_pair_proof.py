@@ -7,7 +7,7 @@ import pytest
 
 from conftest import ROOT, exact_nearest, grid_xy
 from planner.camera.model import Camera
-from planner.plan.pipeline import read_layout
+from planner.layout.read import read_layout
 from planner.verify import pair_cells as pc
 from planner.verify.pair_proof import pair_envelope, possible_window_pairs, prove_pair_set
 from planner.verify.proof import _hull_depth
@@ -147,7 +147,7 @@ def test_over_the_pair_budget_is_refused():
 
 def _dense_windows_inside(layout_name, cam, per_m2):
     from conftest import ROOT
-    from planner.plan.pipeline import read_layout
+    from planner.layout.read import read_layout
     from planner.verify.pair_windows import find_pairs
 
     lay = read_layout(ROOT / "layouts" / layout_name, None)

@@ -7,7 +7,7 @@ from conftest import ROOT
 from planner.camera.model import Camera
 from planner.codes.pair_code import PairIndex, assign_pairs
 from planner.graph import build_graph
-from planner.plan.pipeline import read_layout
+from planner.layout.read import read_layout
 from planner.verify.pair_proof import prove_pair_set
 from planner.verify.pair_windows import find_pairs, pair_rivals
 from planner.verify.windows import sample_poses, working_area
