@@ -31,10 +31,10 @@ STAGES: tuple[tuple[str, ...], ...] = (
     ("planner.firmware", "planner.firmware_templates"),  # the templates: firmware_templates/, mapped in
     ("planner.flash",),
     ("planner.positioning",),
+    ("planner.receivers",),  # receiver modes: each one's window rule, proof, identification, accuracy model
     ("planner.twin",),
     ("planner.photo",),
     ("planner.calibration",),
-    ("planner.receivers",),  # receiver modes: each one's window rule, proof, identification, accuracy model
     ("planner.advice",),
     ("planner.plan.model",),  # the typed plan: every stage's result for one site
     ("planner.report",),

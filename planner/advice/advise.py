@@ -25,6 +25,8 @@ from planner.advice.changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
 from planner.advice.frames import FrameFit, FrameLimits, frame_fit, frame_text
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2
+from planner.receivers.modes import PAPER
+from planner.receivers.modes import RECEIVERS as MODES
 from planner.verify.windows import working_area
 
 ADVICE_POSES_PER_M2 = 10.0
@@ -200,7 +202,7 @@ def verdict(advice: dict) -> str:
     cov, goal = 100 * advice["coverage"], 100 * advice["goal"]
     if not advice["usable"]:
         few, alike = 100 * advice.get("too_few_leds", 0.0), 100 * advice.get("ambiguous", 0.0)
-        seen = "two" if advice.get("receiver") == "gravity" else "three"
+        seen = MODES.get(str(advice.get("receiver")), PAPER).leds_text
         why = (f"{few:.0f} % see fewer than {seen} whole LEDs: the luminaires are too sparse for this camera"
                if few >= 50 else f"{alike:.0f} % are ambiguous under this scheme (--scheme auto avoids that)"
                if alike >= few else "poses fail near the walls or see collinear LEDs")

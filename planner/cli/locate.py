@@ -78,13 +78,14 @@ def simulate(plan: PlanFile, pose: str, noise_px: float, seed: int) -> dict:
     from planner.positioning.locate import Site, Snapshot
     from planner.positioning.observation import observe
     from planner.positioning.snapshot_file import snapshot_document
+    from planner.receivers.modes import receiver_for
 
     site = Site.from_plan(plan)
     camera = plan.camera_model()
     position, rotation = _pose(pose)
     rng = np.random.default_rng(seed) if noise_px > 0 else None
     seen = observe(position, rotation, site.xyz, site.radii, camera, rng, noise_px)
-    gravity = rotation.T @ np.array([0.0, 0.0, -1.0]) if plan.receiver_mode == "gravity" else None  # exact vertical
+    gravity = receiver_for(plan.receiver_mode, "receiver.mode").exact_vertical(rotation)
     return snapshot_document(Snapshot(camera, [int(site.ids[k]) for k in seen.index], seen.ellipses, gravity))
 
 

@@ -126,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("the following arguments are required: LAYOUT")
     from planner.layout.read import read_layout
     from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
+    from planner.receivers.modes import PAPER
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
@@ -179,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
-        "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": "three"},
+        "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": PAPER.name},
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
@@ -193,7 +194,8 @@ def main(argv: list[str] | None = None) -> int:
         _print_summary(summary)
     v = plan.verification
     unusable = plan.advice is not None and not plan.advice.usable
-    few = 2 if plan.receiver is not None and plan.receiver.mode == "gravity" else 3
+    mode = plan.receiver.mode if plan.receiver is not None else PAPER
+    few = mode.leds
     if v is not None and unusable:
         print(f"vlp-plan: plan written, but NOT USABLE: only {100 * v.coverage:.1f} % of sampled poses decode "
               f"({v.count(3)} of {v.poses} see fewer than {few} whole LEDs); see the advice in the summary and "
@@ -206,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         assert v.window_set is not None  # no ambiguous pose, so the window set is what is not clean
         first = v.window_set.conflicts[0]
         names = [lum.name for lum in plan.layout.luminaires]
-        shape = "pairs" if plan.receiver is not None and plan.receiver.mode == "gravity" else "triangles"
+        shape = mode.shape
         print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} {shape} that may be windows read like "
               f"other luminaires under the {plan.assignment.scheme} scheme, first "
               + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",

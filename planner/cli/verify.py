@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 from planner._files import write_atomically
@@ -49,6 +48,7 @@ def main(argv: list[str] | None = None) -> int:
 
     plan = load_plan(args.plan)
     from planner.plan.budget import check_work, verify_work
+    from planner.receivers.modes import receiver_for
 
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     xyz, radii, ids = plan.xyz, plan.radii, plan.ids
@@ -56,13 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     recorded = (plan.verification.window_set if plan.verification else None) or {}
     install = args.install_tolerance if args.install_tolerance is not None else \
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
-    if plan.receiver_mode == "gravity":  # two-LED windows (planner.receivers.choice)
-        from planner.receivers.choice import verify_gravity
-
-        result = verify_gravity(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
-                                tolerance_m=args.tolerance, install_tolerance_m=install)
-    else:
-        result = _verify_three(xyz, radii, ids, plan, camera, args, recorded, install)
+    mode = receiver_for(plan.receiver_mode, "receiver.mode")  # its windows and proof (planner.receivers)
+    result = mode.verify(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
+                         tolerance_m=args.tolerance, install_tolerance_m=install, recorded=recorded)
     summary = result.summary(plan.names, limit=10)
     from planner.advice.advise import verdict
 
@@ -99,22 +95,6 @@ def _standing(result, plan) -> dict:
     n = max(result.poses, 1)
     return standing(result.coverage, result.count(TOO_FEW) / n, result.count(AMBIGUOUS) / n,
                     plan.advice.goal if plan.advice is not None else COVERAGE_GOAL, plan.receiver_mode)
-
-
-def _verify_three(xyz, radii, ids, plan, camera, args, recorded: dict, install: float):
-    """The three-LED receiver's verification: sampled windows and the window set, proved where the proof completes."""
-    from planner.verify.proof import prove_window_set
-    from planner.verify.verify import check_window_set, side_bound, verify_plan
-
-    result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=args.poses_per_m2, seed=args.seed,
-                         tolerance_m=args.tolerance)
-    # The proof is made anew from the luminaires and the camera, never read from the plan; without
-    # one, only the sampled side bound may come from the plan.
-    proof = prove_window_set(xyz, radii, camera, install)
-    bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0))
-                if recorded.get("max_side_from") != "proof" else 0.0)
-    return replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
-                                                       install_tolerance_m=install, proof=proof))
 
 
 def console_main(argv: list[str] | None = None) -> int:

@@ -268,10 +268,11 @@ class PlanFile(_Section):
 
     @property
     def window_length_cap_m(self) -> float | None:
-        """A gravity plan's cap on its two-LED window's length [m] (``verification.window_set``), or None."""
+        """The plan's cap on its window's length [m] (``verification.window_set``; a gravity plan's two-LED
+        window, which only the gravity receiver's identification reads), or None."""
         window_set = (self.verification.window_set if self.verification else None) or {}
         cap = window_set.get("window_length_cap_m")
-        if cap is None or self.receiver_mode != "gravity":
+        if cap is None:
             return None
         if isinstance(cap, bool) or not isinstance(cap, (int, float)) or not 0 < cap < math.inf:
             raise InputError(f"verification.window_set.window_length_cap_m: {cap!r} is not a length > 0 m; "

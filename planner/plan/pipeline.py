@@ -10,7 +10,7 @@ import hashlib
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +18,7 @@ import numpy as np
 from planner.advice.advise import COVERAGE_GOAL, Site, advise
 from planner.advice.frames import FrameLimits
 from planner.camera.model import Camera
-from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
-from planner.codes.schemes import assign_unique, assign_window
 from planner.defaults import (
     ACCELEROMETER_SIGMA_DEG,
     INSTALL_TOLERANCE_M,
@@ -33,21 +31,18 @@ from planner.errors import UsageError
 from planner.graph import build_graph
 from planner.layout.model import Layout
 from planner.modulation.frame import line_code
-from planner.modulation.timing import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
+from planner.modulation.timing import DRIVER_MAX_HZ, modulate
 from planner.plan.budget import plan_sample_per_m2
 from planner.plan.file import plan_from_document
 from planner.plan.model import Plan, dump_plan, plan_document, plan_hash
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
 from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
-from planner.verify.proof import prove_window_set
+from planner.receivers.base import Job
+from planner.receivers.choice import check_receiver, choose
+from planner.receivers.modes import PAPER
 from planner.verify.verify import (
     AMBIGUOUS,
     TOO_FEW,
-    Verification,
-    check_window_set,
-    classify,
-    observe_poses,
-    side_bound,
 )
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
 
@@ -92,9 +87,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         raise UsageError("--no-verify needs an explicit --scheme: auto chooses the scheme by verifying it")
     if options.receiver not in RECEIVERS:
         raise UsageError(f"--receiver {options.receiver}: unknown receiver; use one of {', '.join(RECEIVERS)}")
-    if options.receiver != "three" and not options.verify:
-        raise UsageError(f"--receiver {options.receiver} needs verification: the two-LED receiver is judged by "
-                         "verifying it; drop --no-verify")
+    check_receiver(options.receiver, options.verify)
     xy, xyz = layout.xy, layout.xyz
     radii = np.array([lum.radius for lum in layout.luminaires])
     graph = build_graph(xy)
@@ -105,112 +98,31 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     per_m2 = plan_sample_per_m2(area, verify=options.verify, poses_per_m2=options.poses_per_m2,
                                 error_poses_per_m2=options.error_poses_per_m2)
     sample = PoseSample.draw(area, xyz, radii, cam, per_m2, options.seed)  # every stage takes a prefix
-    observations: dict = {}  # seed -> what the camera sees; shared by every scheme checked
-    if options.verify:
-        poses, windows = sample.first(options.poses_per_m2)
-        observations[options.seed] = observe_poses(poses, xyz, radii, cam, per_m2=options.poses_per_m2,
-                                                    seed=options.seed, tolerance_m=options.tolerance_m, windows=windows)
-
-    def verify_ids(ids: np.ndarray) -> Verification | None:
-        return classify(observations[options.seed], ids) if options.verify else None
-
-    def plan_three():
-        proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
-        made = {}
-        if options.scheme in ("paper", "auto"):
-            paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)
-            made["paper"] = (paper, verify_ids(paper.ids))
-        if options.scheme in ("window", "auto"):
-            made["window"] = assign_window(xyz, radii, layout.outline, graph, cam, seed=options.seed,
-                                           time_budget=options.time_budget, per_m2=options.poses_per_m2,
-                                           tolerance_m=options.tolerance_m, install_tolerance_m=options.install_tolerance_m,
-                                           observations=observations, proof=proof)
-        if options.scheme == "unique":
-            unique = assign_unique(xy, graph)
-            made["unique"] = (unique, verify_ids(unique.ids))
-        bound = max([side_bound(v.windows, xyz, options.tolerance_m) for _, v in made.values() if v]
-                    + [float(a.detail.get("max_side_m", 0.0)) for a, _ in made.values()], default=0.0)
-
-        def judged(a, v):  # every scheme is also judged on the window set, up to one side bound
-            return a, (v and replace(v, window_set=check_window_set(xyz, radii, a.ids, bound,
-                                                                      tolerance_m=options.tolerance_m,
-                                                                      install_tolerance_m=options.install_tolerance_m,
-                                                                      proof=proof)))
-
-        made = {k: judged(a, v) for k, (a, v) in made.items()}
-        if options.scheme == "auto":
-            clean = [k for k, (_, v) in made.items() if v is not None and v.clean]  # auto verifies: never None
-            if clean:
-                chosen = min(clean, key=lambda k: (made[k][0].bits, k != "paper"))
-            else:
-                unique = assign_unique(xy, graph)
-                made["unique"] = judged(unique, verify_ids(unique.ids))
-                chosen = "unique"
-        else:
-            chosen = options.scheme
-        assignment, verification = made[chosen]
-        considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),
-                          "window_set_conflicts": (len(v.window_set.conflicts) if v and v.window_set else None)}
-                      for k, (a, v) in made.items()}
-        return assignment, verification, considered
-
-    def plan_two():
-        from planner.receivers.choice import plan_gravity
-
-        return plan_gravity(xyz, radii, graph, cam, sample, scheme=options.scheme, per_m2=options.poses_per_m2,
-                            seed=options.seed, time_budget=options.time_budget, tolerance_m=options.tolerance_m,
-                            install_tolerance_m=options.install_tolerance_m)
-
-    receiver = None
-    if options.receiver == "three":
-        assignment, verification, considered = plan_three()
-    else:
-        from planner.receivers.choice import AUTO_GOAL, ReceiverChoice, seen_shares
-
-        planned = {}
-        if options.receiver == "auto":
-            planned["three"] = plan_three()
-        if options.receiver == "gravity" or planned["three"][1].coverage < AUTO_GOAL:
-            planned["gravity"] = plan_two()
-        coverage = {k: float(v.coverage) for k, (_, v, _) in planned.items()}
-        mode = max(coverage, key=lambda k: (coverage[k], k == "three"))
-        reason = ("asked for (--receiver gravity)" if options.receiver == "gravity" else
-                  f"three-LED receiver decodes {100 * coverage['three']:.1f} % of sampled poses, at least the goal "
-                  f"of {100 * AUTO_GOAL:.0f} %" if len(planned) == 1 else
-                  f"decodes more sampled poses ({100 * coverage[mode]:.1f} % against "
-                  f"{100 * min(coverage.values()):.1f} %)")
-        assignment, verification, considered = planned[mode]
-        receiver = ReceiverChoice(mode, coverage, seen_shares(sample.first(options.poses_per_m2)[1]), reason,
-                                  options.accelerometer_sigma_deg)
+    job = Job(xyz, radii, layout.outline, graph, cam, sample, {}, options.scheme, options.seed, options.time_budget,
+              options.poses_per_m2, options.tolerance_m, options.install_tolerance_m, options.verify)
+    (assignment, verification, considered), receiver = choose(job, options.receiver, options.accelerometer_sigma_deg)
+    mode = receiver.mode if receiver is not None else PAPER
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
     code = line_code(options.line_code)
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
-    if receiver is not None and receiver.mode == "gravity":
-        from planner.receivers.choice import smallest_pair_image_rows
-
-        rows = smallest_pair_image_rows(xyz, radii, cam, sample)
-    else:
-        rows = smallest_window_image_rows(xyz, radii, cam, sample)
+    rows = mode.smallest_image_rows(xyz, radii, cam, sample)
     modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
                           video_fps=options.video_fps, max_video_frames=options.max_video_frames,
                           mcu_clock_hz=options.mcu_clock_hz)
     accuracy = None
     if with_error_map:
-        gravity = receiver is not None and receiver.mode == "gravity"  # its accelerometer's error: one more term
         sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
-        accuracy = site_accuracy(xyz, radii, layout.outline, cam, "gravity" if gravity else options.locate_method,
+        accuracy = site_accuracy(xyz, radii, layout.outline, cam, mode.accuracy_method(options.locate_method),
                                  per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample,
-                                 terms=replace(options.error_terms, gravity_rad=sigma_rad) if gravity else
-                                 options.error_terms, accelerometer_sigma_rad=sigma_rad)
+                                 terms=mode.error_terms(options.error_terms, sigma_rad), accelerometer_sigma_rad=sigma_rad)
     advice = None
     if verification is not None:
         filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
         share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
-        mode = receiver.mode if receiver is not None else "three"
         frames = FrameLimits(options.line_code, options.check_distance, options.driver_max_hz, options.video_fps,
                              options.max_video_frames, options.mcu_clock_hz)  # the changes' frames must fit too
-        advice = advise(Site(xyz, radii, layout.outline, cam, mode, filled), verification.coverage, *share,
+        advice = advise(Site(xyz, radii, layout.outline, cam, mode.name, filled), verification.coverage, *share,
                         goal=options.coverage_goal, seed=options.seed, frames=frames,
                         allow_unusable=options.allow_unusable)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)

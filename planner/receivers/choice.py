@@ -1,36 +1,16 @@
-"""Receiver modes: the paper's three-LED receiver, or two LEDs plus gravity; and which serves a site.
-
-``three`` is the paper's receiver (a window of three whole LEDs, :mod:`planner.verify.windows`).
-``gravity`` takes the accelerometer's vertical and a window of two (:mod:`planner.verify.pair_windows`,
-:mod:`planner.positioning.gravity`); its IDs are the pair code (:mod:`planner.codes.pair_code`) or
-the paper's, judged on the two-LED windows. ``auto`` plans the three-LED receiver and, where it
-decodes fewer than :data:`AUTO_GOAL` of the sampled poses, the gravity receiver too, and keeps the
-mode that decodes more poses (docs/schemes.md, "Receiver modes").
+"""Which receiver mode serves a site: the one asked for, or with ``auto`` the paper's three-LED receiver
+and, where it decodes fewer than :data:`AUTO_GOAL` of the sampled poses, the other modes too, keeping the
+mode that decodes more poses (docs/schemes.md, "Receiver modes"). The modes: :mod:`planner.receivers.modes`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
-import numpy as np
-
-from planner.camera.model import Camera, disc_image_rows
-from planner.codes.assignment import Assignment, assign_paper
-from planner.codes.pair_code import assign_pairs
-from planner.codes.schemes import assign_unique
-from planner.errors import PlanningError
-from planner.graph import NeighbourGraph
-from planner.modulation.timing import timing_per_m2
-from planner.verify.pair_proof import prove_pair_set
-from planner.verify.pair_windows import (
-    PosePairs,
-    check_pair_set,
-    classify_pairs,
-    find_pairs,
-    window_pairs,
-)
-from planner.verify.verify import Verification
-from planner.verify.windows import PoseSample, PoseWindows
+from planner.errors import UsageError
+from planner.receivers.base import Job, Planned, Receiver
+from planner.receivers.modes import AUTO, PAPER, RECEIVERS, receiver_for
+from planner.verify.windows import PoseWindows
 
 AUTO_GOAL = 0.9
 """``--receiver auto`` plans the gravity receiver too where the three-LED one decodes fewer poses than this."""
@@ -48,83 +28,47 @@ def seen_shares(windows: PoseWindows) -> dict:
 class ReceiverChoice:
     """The mode a plan is made for, each planned mode's sampled coverage, and what the poses see."""
 
-    mode: str
+    mode: Receiver
     coverage: dict[str, float]
     seen: dict
     reason: str
     accelerometer_sigma_deg: float
 
     def summary(self) -> dict:
-        return {"mode": self.mode, "coverage": {k: round(v, 6) for k, v in self.coverage.items()},
+        return {"mode": self.mode.name, "coverage": {k: round(v, 6) for k, v in self.coverage.items()},
                 "poses_seeing": self.seen, "reason": self.reason,
-                **({"accelerometer_sigma_deg": self.accelerometer_sigma_deg} if self.mode == "gravity" else {})}
+                **({"accelerometer_sigma_deg": self.accelerometer_sigma_deg} if self.mode.extra_error_terms else {})}
 
 
-def smallest_pair_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
-    """Rows of the smallest LED image in any two-LED window over the timing prefix of ``sample``."""
-    poses, _ = sample.first(timing_per_m2(sample.area))
-    pp = find_pairs(poses, xyz, radii, camera)
-    if not pp.covered.any():
-        raise PlanningError("no sampled camera pose sees two whole LEDs: no LED image to fit a frame into; "
-                            "check the luminaire spacing against the camera (docs/camera.md)")
-    sub = poses.subset(np.flatnonzero(pp.covered))
-    t = pp.pairs[pp.covered]
-    return float(disc_image_rows(sub.position, sub.rotation, xyz[t], radii[t], camera).min())
+def check_receiver(asked: str, verify: bool) -> None:
+    """:class:`UsageError` if ``asked`` (a mode other than the paper's, or ``auto``) is not to be verified."""
+    if (asked == AUTO or receiver_for(asked) is not PAPER) and not verify:
+        raise UsageError(f"--receiver {asked} needs verification: the two-LED receiver is judged by "
+                         "verifying it; drop --no-verify")
 
 
-def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, camera: Camera, sample: PoseSample, *,
-                 scheme: str, per_m2: float, seed: int, time_budget: float, tolerance_m: float,
-                 install_tolerance_m: float) -> tuple[Assignment, Verification, dict]:
-    """IDs for the gravity receiver under ``scheme`` (``auto``: the pair code or the paper's, fewer bits
-    that verifies; else unique), each verified on the sample's two-LED windows and the pair set."""
-    poses, _ = sample.first(per_m2)
-    pp: PosePairs = find_pairs(poses, xyz, radii, camera)
-    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, sample.area)
-    sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
-
-    def verified(a: Assignment) -> tuple[Assignment, Verification]:
-        v = classify_pairs(poses.position, pp, xyz, a.ids, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
-        check = check_pair_set(xyz, a.ids, proof.pairs, sampled, tolerance_m=tolerance_m,
-                               install_tolerance_m=install_tolerance_m, reason=proof.reason, envelope=proof.envelope)
-        return a, replace(v, window_set=check)
-
-    made: dict[str, tuple[Assignment, Verification]] = {}
-    if scheme in ("window", "auto"):
-        design, _, _ = window_pairs(xyz, proof.pairs, sampled, tolerance_m)  # what the check checks
-        made["window"] = verified(assign_pairs(xyz, graph, design, tolerance_m=tolerance_m, seed=seed,
-                                               proved=proof.complete, time_budget=time_budget))
-    if scheme in ("paper", "auto"):
-        made["paper"] = verified(assign_paper(xyz[:, :2], graph, time_budget=time_budget, seed=seed))
-    if scheme == "unique":
-        made["unique"] = verified(assign_unique(xyz[:, :2], graph))
-    if scheme == "auto":
-        clean = [k for k, (_, v) in made.items() if v.clean]
-        if clean:
-            chosen = min(clean, key=lambda k: (made[k][0].bits, k != "window"))
-        else:
-            made["unique"] = verified(assign_unique(xyz[:, :2], graph))
-            chosen = "unique"
+def choose(job: Job, asked: str, accelerometer_sigma_deg: float) -> tuple[Planned, ReceiverChoice | None]:
+    """The IDs planned for the mode ``asked`` (or with ``auto`` the best mode), and the choice made (None for the
+    paper's receiver asked for by name: its plans carry no receiver section)."""
+    planned: dict[str, Planned] = {}
+    if asked == AUTO:
+        planned[PAPER.name] = PAPER.plan(job)
+        verification = planned[PAPER.name][1]
+        assert verification is not None  # auto verifies
+        if verification.coverage < AUTO_GOAL:
+            planned.update((m.name, m.plan(job)) for m in RECEIVERS.values() if m is not PAPER)
     else:
-        chosen = scheme
-    considered = {k: {"bits": a.bits, "ambiguous_poses": v.count(1),
-                      "window_set_conflicts": len(v.window_set.conflicts) if v.window_set else None}
-                  for k, (a, v) in made.items()}
-    assignment, verification = made[chosen]
-    return assignment, verification, considered
-
-
-def verify_gravity(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
-                   seed: int, tolerance_m: float, install_tolerance_m: float) -> Verification:
-    """A gravity plan verified anew (``vlp-verify``): sampled two-LED windows and the pair set, proved where
-    the pair proof completes (made from the luminaires and the camera, never read from the plan)."""
-    from planner.verify.windows import sample_poses, working_area
-
-    area = working_area(xyz[:, :2], outline)
-    poses = sample_poses(area, camera, per_m2, seed)
-    pp = find_pairs(poses, xyz, radii, camera)
-    proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, area)
-    sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
-    v = classify_pairs(poses.position, pp, xyz, ids, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
-    return replace(v, window_set=check_pair_set(xyz, ids, proof.pairs, sampled, tolerance_m=tolerance_m,
-                                                install_tolerance_m=install_tolerance_m, reason=proof.reason,
-                                                envelope=proof.envelope))
+        mode = receiver_for(asked)
+        planned[mode.name] = mode.plan(job)
+        if mode is PAPER:
+            return planned[mode.name], None
+    coverage = {k: float(v.coverage) for k, (_, v, _) in planned.items() if v is not None}
+    best = max(coverage, key=lambda k: (coverage[k], RECEIVERS[k] is PAPER))
+    reason = (f"asked for (--receiver {asked})" if asked != AUTO else
+              f"three-LED receiver decodes {100 * coverage[PAPER.name]:.1f} % of sampled poses, at least the goal "
+              f"of {100 * AUTO_GOAL:.0f} %" if len(planned) == 1 else
+              f"decodes more sampled poses ({100 * coverage[best]:.1f} % against "
+              f"{100 * min(coverage.values()):.1f} %)")
+    choice = ReceiverChoice(RECEIVERS[best], coverage, seen_shares(job.sample.first(job.poses_per_m2)[1]), reason,
+                            accelerometer_sigma_deg)
+    return planned[best], choice

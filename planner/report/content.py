@@ -129,6 +129,7 @@ def checklist(plan: PlanFile, journal: dict[str, dict] | None = None) -> list[St
 def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
     """The report's headline figures as (label, value) pairs, from the plan."""
     from planner.positioning.accuracy import method_text
+    from planner.receivers.modes import RECEIVERS
 
     code, mod, ver, acc = plan.code, plan.modulation, plan.verification, plan.accuracy
     regions = len(set(plan.regions.tolist()))
@@ -149,7 +150,7 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
         rows.append(("verification", "not verified (--no-verify)"))
     if plan.receiver:  # --receiver gravity or auto: coverage per receiver mode planned
         r = plan.receiver
-        modes = {"three": "three LEDs", "gravity": "two LEDs plus gravity"}
+        modes = {name: mode.title for name, mode in RECEIVERS.items()}
         per = "; ".join(f"{modes.get(k, k)} {100 * float(c):.1f} %" for k, c in (r.get("coverage") or {}).items())
         one = (r.get("poses_seeing") or {}).get("exactly_one_led")
         rows.append(("receiver", f"{modes.get(str(r.get('mode')), r.get('mode'))} ({r.get('reason', '')}); sampled "
@@ -190,6 +191,7 @@ def error_includes(plan: PlanFile) -> str:
     """What the plan's expected-error figures include, in a sentence (pixel noise only for plans made before
     the error budget)."""
     from planner.positioning.error_terms import ErrorTerms, included_text
+    from planner.receivers.modes import extra_error_terms
 
     acc = plan.accuracy
     if acc is None:
@@ -199,7 +201,7 @@ def error_includes(plan: PlanFile) -> str:
         return (f"includes edge noise ({noise:g} px) only: " if noise is not None else "includes pixel noise only: ") + \
             "install, calibration and motion errors come on top (the plan predates the error budget)"
     terms = ErrorTerms.from_dict(acc.terms)
-    kinds = ("install", "calibration", "edge", "skew", *(("accelerometer",) if acc.method == "gravity" else ()))
+    kinds = ("install", "calibration", "edge", "skew", *extra_error_terms(acc.method))
     left = [name for name in kinds if name not in terms.active]
     return f"includes {included_text(terms)}" + (f"; leaves out {', '.join(_term_name(n) for n in left)}" if left else "")
 

@@ -65,7 +65,7 @@ def test_ultrawide_office_two_led_plan_is_proved_past_the_horizon():
     """Issue 19, Done-when 1 (in part): the listed ultra-wide profile's tilt plus corner angle passes
     the horizon, where the three-LED proof stops; the pair proof's envelope bounds reach by the site."""
     from planner.camera.file import camera_profile
-    from planner.receivers.choice import plan_gravity
+    from planner.receivers.gravity import plan_gravity
     from planner.verify.windows import PoseSample
 
     lay = read_layout(ROOT / "layouts" / "dialux-office.dxf", None)
