@@ -48,7 +48,7 @@ def bench(layout: Layout, label: str, with_outputs: bool, args) -> None:
 
     t0 = time.perf_counter()
     check_layout(layout)
-    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, 0, Camera()))
+    plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=0, camera=Camera()))
     t1 = time.perf_counter()
     a = plan.assignment
     line = (f"{label:<9} n={len(layout.luminaires):>6}  plan+verify {t1 - t0:7.2f} s  {a.scheme} {a.bits} bits "

@@ -11,7 +11,7 @@ SCHEMES = ("auto", "paper", "window", "unique")
 """ID schemes ``vlp-plan --scheme`` offers."""
 
 RECEIVERS = ("three", "gravity", "auto")
-"""Receiver modes ``vlp-plan --receiver`` offers (:mod:`planner.receivers.choice`)."""
+"""Receiver modes ``vlp-plan --receiver`` offers (:mod:`planner.receivers.modes`, and ``auto``)."""
 
 ACCELEROMETER_SIGMA_DEG = 1.0
 """Default standard deviation of the gravity direction a phone's accelerometer gives [deg]."""
@@ -139,6 +139,10 @@ MAX_PLAN_POSES = 50_000_000
 MAX_IMAGE_VERSION = 1_000_000
 """Highest image version the planner writes or vlp-flash signs: a version near 2^32 would leave a
 driver no newer version to move to (docs/flashing.md); a million re-plans leave room enough."""
+
+MCU_CLOCK_HZ = 16e6
+"""Default clock of the drivers' microcontroller [Hz] (``--mcu-clock-hz``; the reference driver's ATmega328P):
+the timer reload in the header, and a multi-frame chip rate is one it plays exactly."""
 
 MAX_MCU_CLOCK_HZ = 1e9
 """Fastest driver microcontroller clock accepted [Hz]: the header's constants are 32-bit (``UL`` on an AVR)."""

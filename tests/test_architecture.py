@@ -137,3 +137,36 @@ def test_few_loose_modules():
     """``ls planner/`` reads as the pipeline: stage packages plus a few shared base modules."""
     loose = sorted(p.name for p in PACKAGE.glob("*.py"))
     assert len(loose) <= MAX_LOOSE_MODULES, loose
+
+
+def _constants(node: ast.expr) -> list[object]:
+    if isinstance(node, ast.Constant):
+        return [node.value]
+    if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+        return [e.value for e in node.elts if isinstance(e, ast.Constant)]
+    return []
+
+
+def test_no_receiver_mode_compared_by_name_outside_receivers():
+    """A receiver mode is a type chosen once (planner.receivers.modes); no other module tests a mode's name."""
+    from planner.receivers.modes import RECEIVERS
+
+    found = []
+    for module, path in MODULES.items():
+        if module == "planner.receivers" or module.startswith("planner.receivers."):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Compare) and any(
+                    value in RECEIVERS for side in (node.left, *node.comparators) for value in _constants(side)):
+                found.append(f"{module}:{node.lineno}")
+    assert not found, found
+
+
+def test_every_receiver_mode_implements_the_whole_mode():
+    from planner.receivers.base import Receiver
+    from planner.receivers.modes import RECEIVERS
+
+    required = ("plan", "verify", "coverage", "decodable", "smallest_image_rows")
+    for name, mode in RECEIVERS.items():
+        assert mode.name == name and mode.leds in (2, 3)
+        assert all(getattr(type(mode), m) is not getattr(Receiver, m) for m in required), name

@@ -23,6 +23,20 @@ PROFILES_FILE = "cameras.yaml"
 """The bundled profiles, in ``planner/data/``."""
 
 
+LensModel = Literal[LENS_MODELS]  # type: ignore[valid-type]  # the names, from planner.camera.lens
+"""A lens model's name, as camera files, plans and observation files write it."""
+
+Distortion = Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)]
+"""Distortion coefficients as the files write them (how many a lens takes: :func:`check_distortion`)."""
+
+
+def check_distortion(lens: str, distortion: list[float]) -> None:
+    """ValueError (a file reader's field error) if ``lens`` takes fewer coefficients than ``distortion`` holds."""
+    if len(distortion) > len(COEFFICIENTS[lens]):
+        raise ValueError(f"the {lens} lens takes at most {len(COEFFICIENTS[lens])} distortion "
+                         f"coefficients ({' '.join(COEFFICIENTS[lens])}), got {len(distortion)}")
+
+
 class CameraFields(BaseModel):
     """A camera's fields as ``plan.yaml`` and camera YAML files write them (``docs/camera.md``)."""
 
@@ -38,8 +52,8 @@ class CameraFields(BaseModel):
                              Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)]] = (0.5, 1.5)
     max_tilt_deg: Annotated[Finite, Field(ge=0, lt=80)] = 40.0
     row_time_s: Annotated[Positive, Field(le=1.0)] = 20e-6
-    lens: Literal[LENS_MODELS] = "pinhole"  # type: ignore[valid-type]
-    distortion: Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)] = []
+    lens: LensModel = "pinhole"
+    distortion: Distortion = []
     name: Annotated[Text, Field(max_length=64)] = ""
 
     @model_validator(mode="after")
@@ -50,9 +64,7 @@ class CameraFields(BaseModel):
         for name, value, size in (("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)):
             if value is not None and not 0 <= value <= size:
                 raise ValueError(f"{name} {value:g} lies outside the {self.width_px} x {self.height_px} px image")
-        if len(self.distortion) > len(COEFFICIENTS[self.lens]):
-            raise ValueError(f"the {self.lens} lens takes at most {len(COEFFICIENTS[self.lens])} distortion "
-                             f"coefficients ({' '.join(COEFFICIENTS[self.lens])}), got {len(self.distortion)}")
+        check_distortion(self.lens, self.distortion)
         return self
 
     def to_camera(self) -> Camera:

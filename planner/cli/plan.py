@@ -24,6 +24,7 @@ from planner.defaults import (
     MAX_TIME_LIMIT_S,
     MAX_VIDEO_FPS,
     MAX_VIDEO_FRAMES,
+    MCU_CLOCK_HZ,
     RECEIVERS,
     SCHEMES,
     VIDEO_FPS,
@@ -101,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("firmware")
     g.add_argument("--templates", metavar="DIR",
                    help="render every *.j2 template in DIR per luminaire instead of the bundled ones (docs/firmware.md)")
-    g.add_argument("--mcu-clock-hz", type=cli.at_most(MAX_MCU_CLOCK_HZ), default=16e6, metavar="HZ",
+    g.add_argument("--mcu-clock-hz", type=cli.at_most(MAX_MCU_CLOCK_HZ), default=MCU_CLOCK_HZ, metavar="HZ",
                    help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6, "
                         "at most 1e9)")
     g.add_argument("--image-version", type=cli.count_up_to(MAX_IMAGE_VERSION), default=1, metavar="N",
@@ -142,10 +143,12 @@ def main(argv: list[str] | None = None) -> int:
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
     cli.progress(f"planning {len(layout.luminaires)} luminaires")
-    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, camera, not args.no_verify,
-                                         args.poses_per_m2, args.tolerance, args.check_distance,
-                                         args.locate_method, args.error_poses_per_m2, args.line_code,
-                                         args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
+    plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=args.seed,
+                                         camera=camera, verify=not args.no_verify, poses_per_m2=args.poses_per_m2,
+                                         tolerance_m=args.tolerance, check_distance=args.check_distance,
+                                         locate_method=args.locate_method, error_poses_per_m2=args.error_poses_per_m2,
+                                         line_code=args.line_code, driver_max_hz=args.driver_max_hz,
+                                         install_tolerance_m=args.install_tolerance, error_terms=cli.error_terms(args),
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
                                          mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
                                          accelerometer_sigma_deg=args.accelerometer_deg,

@@ -15,14 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.advice.advise import COVERAGE_GOAL, Site, advise
+from planner.advice.advise import COVERAGE_GOAL, Advice, Site, advise
 from planner.advice.frames import FrameLimits
 from planner.camera.model import Camera
-from planner.codes.check_bits import check_code
+from planner.codes.assignment import Assignment
+from planner.codes.check_bits import CheckCode, check_code
 from planner.defaults import (
     ACCELEROMETER_SIGMA_DEG,
     INSTALL_TOLERANCE_M,
     MAX_VIDEO_FRAMES,
+    MCU_CLOCK_HZ,
     RECEIVERS,
     SCHEMES,
     VIDEO_FPS,
@@ -31,25 +33,27 @@ from planner.errors import UsageError
 from planner.graph import build_graph
 from planner.layout.model import Layout
 from planner.modulation.frame import line_code
-from planner.modulation.timing import DRIVER_MAX_HZ, modulate
+from planner.modulation.timing import DRIVER_MAX_HZ, Modulation, modulate
 from planner.plan.budget import plan_sample_per_m2
 from planner.plan.file import plan_from_document
 from planner.plan.model import Plan, dump_plan, plan_document, plan_hash
-from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
+from planner.positioning.accuracy import ERROR_POSES_PER_M2, SiteAccuracy, site_accuracy
 from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
-from planner.receivers.base import Job
+from planner.receivers.base import Job, Receiver
 from planner.receivers.choice import check_receiver, choose
 from planner.receivers.modes import PAPER
 from planner.verify.verify import (
     AMBIGUOUS,
     TOO_FEW,
+    Verification,
 )
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, PoseSample, working_area
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PlanOptions:
-    """How to plan: scheme, search budget, seed, camera, and verification sampling."""
+    """How to plan: scheme, search budget [s], seed, camera, verification sampling, frames and the error map;
+    built from keywords (``PlanOptions(scheme="window", seed=1)``), one default for each (planner.defaults)."""
 
     scheme: str = "auto"
     time_budget: float = 10.0
@@ -65,36 +69,27 @@ class PlanOptions:
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
     error_terms: ErrorTerms = DEFAULT_TERMS
-    receiver: str = "three"
+    receiver: str = PAPER.name  # a mode of planner.receivers.modes, or "auto"
     accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG
     video_fps: float = VIDEO_FPS
     max_video_frames: int = MAX_VIDEO_FRAMES
-    mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
+    mcu_clock_hz: float | None = MCU_CLOCK_HZ  # the drivers' timer clock: a multi-frame rate is one it plays exactly
     coverage_goal: float = COVERAGE_GOAL
     allow_unusable: bool = False  # recorded in the advice: vlp-verify then exits 0 on an unusable plan too
 
 
 def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
-    """Plan a checked layout: neighbour graph, IDs under the chosen scheme, verification, frames, error map.
+    """Plan a checked layout: neighbour graph, IDs for the receiver mode under the chosen scheme, verification,
+    frames, error map and advice, each a stage call.
 
     ``auto`` makes the paper's and the window scheme, verifies both, and keeps the
     one with fewer bits that has no ambiguous pose (the paper's on a tie); if
     neither verifies, one unique ID per luminaire.
     """
-    if options.scheme not in SCHEMES:
-        raise UsageError(f"--scheme {options.scheme}: unknown scheme; use one of {', '.join(SCHEMES)}")
-    if options.scheme == "auto" and not options.verify:
-        raise UsageError("--no-verify needs an explicit --scheme: auto chooses the scheme by verifying it")
-    if options.receiver not in RECEIVERS:
-        raise UsageError(f"--receiver {options.receiver}: unknown receiver; use one of {', '.join(RECEIVERS)}")
-    check_receiver(options.receiver, options.verify)
-    xy, xyz = layout.xy, layout.xyz
-    radii = np.array([lum.radius for lum in layout.luminaires])
-    graph = build_graph(xy)
-    cam = options.camera
-
-    area = working_area(xy, layout.outline)
-    with_error_map = options.verify and options.error_poses_per_m2 > 0
+    _check_options(options)
+    xyz, radii, cam = layout.xyz, np.array([lum.radius for lum in layout.luminaires]), options.camera
+    graph = build_graph(layout.xy)
+    area = working_area(layout.xy, layout.outline)
     per_m2 = plan_sample_per_m2(area, verify=options.verify, poses_per_m2=options.poses_per_m2,
                                 error_poses_per_m2=options.error_poses_per_m2)
     sample = PoseSample.draw(area, xyz, radii, cam, per_m2, options.seed)  # every stage takes a prefix
@@ -103,29 +98,54 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
     (assignment, verification, considered), receiver = choose(job, options.receiver, options.accelerometer_sigma_deg)
     mode = receiver.mode if receiver is not None else PAPER
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
-    code = line_code(options.line_code)
+    modulation = _modulate(assignment, check, mode.smallest_image_rows(xyz, radii, cam, sample), options)
+    accuracy = _accuracy(layout, radii, mode, sample, options)
+    advice = _advice(layout, radii, mode, verification, options)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
+
+
+def _check_options(options: PlanOptions) -> None:
+    if options.scheme not in SCHEMES:
+        raise UsageError(f"--scheme {options.scheme}: unknown scheme; use one of {', '.join(SCHEMES)}")
+    if options.scheme == "auto" and not options.verify:
+        raise UsageError("--no-verify needs an explicit --scheme: auto chooses the scheme by verifying it")
+    if options.receiver not in RECEIVERS:
+        raise UsageError(f"--receiver {options.receiver}: unknown receiver; use one of {', '.join(RECEIVERS)}")
+    check_receiver(options.receiver, options.verify)
+
+
+def _modulate(assignment: Assignment, check: CheckCode, rows: float, options: PlanOptions) -> Modulation:
+    """Each luminaire's frame (its ID's codeword), timed for the smallest LED image of a window [rows]."""
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
-    rows = mode.smallest_image_rows(xyz, radii, cam, sample)
-    modulation = modulate(np.asarray(words), check.word_bits, code, rows, cam, driver_max_hz=options.driver_max_hz,
-                          video_fps=options.video_fps, max_video_frames=options.max_video_frames,
-                          mcu_clock_hz=options.mcu_clock_hz)
-    accuracy = None
-    if with_error_map:
-        sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
-        accuracy = site_accuracy(xyz, radii, layout.outline, cam, mode.accuracy_method(options.locate_method),
-                                 per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample,
-                                 terms=mode.error_terms(options.error_terms, sigma_rad), accelerometer_sigma_rad=sigma_rad)
-    advice = None
-    if verification is not None:
-        filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
-        share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
-        frames = FrameLimits(options.line_code, options.check_distance, options.driver_max_hz, options.video_fps,
-                             options.max_video_frames, options.mcu_clock_hz)  # the changes' frames must fit too
-        advice = advise(Site(xyz, radii, layout.outline, cam, mode.name, filled), verification.coverage, *share,
-                        goal=options.coverage_goal, seed=options.seed, frames=frames,
-                        allow_unusable=options.allow_unusable)
-    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
+    return modulate(np.asarray(words), check.word_bits, line_code(options.line_code), rows, options.camera,
+                    driver_max_hz=options.driver_max_hz, video_fps=options.video_fps,
+                    max_video_frames=options.max_video_frames, mcu_clock_hz=options.mcu_clock_hz)
+
+
+def _accuracy(layout: Layout, radii: np.ndarray, mode: Receiver, sample: PoseSample,
+              options: PlanOptions) -> SiteAccuracy | None:
+    """The error map of the mode's accuracy model, when verifying with an error-map density."""
+    if not (options.verify and options.error_poses_per_m2 > 0):
+        return None
+    sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
+    return site_accuracy(layout.xyz, radii, layout.outline, options.camera, mode.accuracy_method(options.locate_method),
+                         per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample,
+                         terms=mode.error_terms(options.error_terms, sigma_rad), accelerometer_sigma_rad=sigma_rad)
+
+
+def _advice(layout: Layout, radii: np.ndarray, mode: Receiver, verification: Verification | None,
+            options: PlanOptions) -> Advice | None:
+    """What would make the site work, from the verification (None unverified)."""
+    if verification is None:
+        return None
+    filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
+    share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
+    frames = FrameLimits(options.line_code, options.check_distance, options.driver_max_hz, options.video_fps,
+                         options.max_video_frames, options.mcu_clock_hz)  # the changes' frames must fit too
+    return advise(Site(layout.xyz, radii, layout.outline, options.camera, mode.name, filled), verification.coverage,
+                  *share, goal=options.coverage_goal, seed=options.seed, frames=frames,
+                  allow_unusable=options.allow_unusable)
 
 
 def default_outdir(layout_path: str | Path) -> Path:
@@ -143,7 +163,7 @@ class FirmwareOptions:
     """How to write the drivers' configuration files (``docs/firmware.md``)."""
 
     template_dir: Path | None = None
-    mcu_clock_hz: float = 16e6
+    mcu_clock_hz: float = MCU_CLOCK_HZ
     image_version: int = 1
 
 
