@@ -25,8 +25,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planner.camera import Camera  # noqa: E402
-from planner.pipeline import ReadOptions, read_layout  # noqa: E402
+from planner.camera.model import Camera  # noqa: E402
+from planner.layout.read import ReadOptions, read_layout  # noqa: E402
 from planner.verify import certify as ce  # noqa: E402
 from planner.verify import certify_witness as cw  # noqa: E402
 from planner.verify.envelope import envelope  # noqa: E402

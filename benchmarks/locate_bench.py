@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from planner.errors import PositioningError  # noqa: E402
-from planner.pipeline import PlanOptions, make_plan, read_layout  # noqa: E402
+from planner.layout.read import read_layout  # noqa: E402
+from planner.plan.pipeline import PlanOptions, make_plan  # noqa: E402
 from planner.positioning.locate import METHODS, Site, Snapshot, identify  # noqa: E402
 from planner.positioning.observation import observe  # noqa: E402
 from planner.verify.windows import sample_poses, working_area  # noqa: E402

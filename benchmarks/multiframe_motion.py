@@ -23,9 +23,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from planner.defaults import TWIN_TOLERANCE_M  # noqa: E402
-from planner.plan_file import load_plan  # noqa: E402
-from planner.twin.twin import Twin, covered_poses  # noqa: E402
-from planner.twin.video import VideoFormat, run_video_pose  # noqa: E402
+from planner.plan.file import load_plan  # noqa: E402
+from planner.twin.twin import Twin, covered_poses, run_video_pose  # noqa: E402
+from planner.twin.video import VideoFormat  # noqa: E402
 
 
 def main() -> None:

@@ -22,10 +22,10 @@ from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planner.camera_file import camera_profile  # noqa: E402
+from planner.camera.file import camera_profile  # noqa: E402
 from planner.codes.pair_code import assign_pairs  # noqa: E402
 from planner.graph import build_graph  # noqa: E402
-from planner.pipeline import read_layout  # noqa: E402
+from planner.layout.read import read_layout  # noqa: E402
 from planner.verify.pair_proof import pair_envelope, possible_window_pairs  # noqa: E402
 from planner.verify.pair_windows import find_pairs  # noqa: E402
 from planner.verify.windows import sample_poses, working_area  # noqa: E402

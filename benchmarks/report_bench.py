@@ -22,8 +22,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from planner.pipeline import PlanOptions, make_plan, read_layout, write_outputs  # noqa: E402
-from planner.plan_file import PlanFile, load_plan, plan_from_document  # noqa: E402
+from planner.layout.read import read_layout  # noqa: E402
+from planner.plan.file import PlanFile, load_plan, plan_from_document  # noqa: E402
+from planner.plan.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
 from planner.report.files import write_report  # noqa: E402
 
 

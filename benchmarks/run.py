@@ -23,9 +23,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planner.camera import Camera  # noqa: E402
+from planner.camera.model import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire, check_layout  # noqa: E402
-from planner.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
+from planner.plan.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
 from planner.studies.efficiency import lattice_layout  # noqa: E402
 
 
@@ -48,7 +48,7 @@ def bench(layout: Layout, label: str, with_outputs: bool, args) -> None:
 
     t0 = time.perf_counter()
     check_layout(layout)
-    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, 0, Camera()))
+    plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=0, camera=Camera()))
     t1 = time.perf_counter()
     a = plan.assignment
     line = (f"{label:<9} n={len(layout.luminaires):>6}  plan+verify {t1 - t0:7.2f} s  {a.scheme} {a.bits} bits "

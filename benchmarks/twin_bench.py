@@ -20,12 +20,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from planner.pipeline import PlanOptions, make_plan, read_layout, write_outputs  # noqa: E402
-from planner.plan_file import load_plan  # noqa: E402
+from planner.decode.image import decode_frame  # noqa: E402
+from planner.layout.read import read_layout  # noqa: E402
+from planner.plan.file import load_plan  # noqa: E402
+from planner.plan.pipeline import PlanOptions, make_plan, write_outputs  # noqa: E402
 from planner.positioning.locate import locate  # noqa: E402
-from planner.twin.receiver import decode_frame, snapshot  # noqa: E402
 from planner.twin.render import render_frame  # noqa: E402
-from planner.twin.twin import Twin, covered_poses  # noqa: E402
+from planner.twin.twin import Twin, covered_poses, snapshot  # noqa: E402
 
 
 def main() -> None:

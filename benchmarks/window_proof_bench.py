@@ -26,9 +26,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from conftest import grid_xy, hex_xy  # noqa: E402
-from planner.camera import Camera  # noqa: E402
+from planner.camera.model import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire  # noqa: E402
-from planner.pipeline import ReadOptions, read_layout  # noqa: E402
+from planner.layout.read import ReadOptions, read_layout  # noqa: E402
 from planner.verify.envelope import envelope  # noqa: E402
 from planner.verify.proof import TRIANGLE_BUDGET, possible_pairs, possible_windows  # noqa: E402
 from planner.verify.verify import observe_site  # noqa: E402

@@ -26,9 +26,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from conftest import jittered_xy  # noqa: E402
-from planner.camera import Camera  # noqa: E402
+from planner.camera.model import Camera  # noqa: E402
 from planner.layout.model import Layout, Luminaire  # noqa: E402
-from planner.pipeline import PlanOptions, ReadOptions, make_plan, read_layout  # noqa: E402
+from planner.layout.read import ReadOptions, read_layout  # noqa: E402
+from planner.plan.pipeline import PlanOptions, make_plan  # noqa: E402
 from planner.verify.proof import prove_window_set  # noqa: E402
 from planner.verify.verify import classify, observe_site  # noqa: E402
 from planner.verify.window_set import window_superset  # noqa: E402

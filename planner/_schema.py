@@ -1,6 +1,6 @@
 """The scalar types and the error wording shared by every pydantic model of a file the tools read.
 
-plan.yaml (:mod:`planner.plan_file`), camera YAML (:mod:`planner.camera_file`) and layout
+plan.yaml (:mod:`planner.plan.file`), camera YAML (:mod:`planner.camera.file`) and layout
 YAML/CSV (:mod:`planner.layout.tables`) are checked by models built from these, and a
 failure reads the same everywhere: ``file: field.path: what is allowed (got ...)``.
 """

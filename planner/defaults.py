@@ -11,13 +11,13 @@ SCHEMES = ("auto", "paper", "window", "unique")
 """ID schemes ``vlp-plan --scheme`` offers."""
 
 RECEIVERS = ("three", "gravity", "auto")
-"""Receiver modes ``vlp-plan --receiver`` offers (:mod:`planner.receivers`)."""
+"""Receiver modes ``vlp-plan --receiver`` offers (:mod:`planner.receivers.modes`, and ``auto``)."""
 
 ACCELEROMETER_SIGMA_DEG = 1.0
 """Default standard deviation of the gravity direction a phone's accelerometer gives [deg]."""
 
 LINE_CODE_NAMES = ("4b6b", "manchester")
-"""Line codes of the frames (:data:`planner.frame.LINE_CODES` holds them)."""
+"""Line codes of the frames (:data:`planner.modulation.frame.LINE_CODES` holds them)."""
 
 LOCATE_METHODS = ("paper", "perspective")
 """Positioning methods (:data:`planner.positioning.locate.METHODS` holds them)."""
@@ -134,11 +134,15 @@ MAX_OBSERVED_LEDS = 2_000
 """Most LEDs one observation file may list: more than any photo shows whole."""
 
 MAX_PLAN_POSES = 50_000_000
-"""Most camera poses one run samples unless ``--max-poses`` says otherwise (about 20 GB, 6 min: planner/budget.py)."""
+"""Most camera poses one run samples unless ``--max-poses`` says otherwise (about 20 GB, 6 min: planner/plan/budget.py)."""
 
 MAX_IMAGE_VERSION = 1_000_000
 """Highest image version the planner writes or vlp-flash signs: a version near 2^32 would leave a
 driver no newer version to move to (docs/flashing.md); a million re-plans leave room enough."""
+
+MCU_CLOCK_HZ = 16e6
+"""Default clock of the drivers' microcontroller [Hz] (``--mcu-clock-hz``; the reference driver's ATmega328P):
+the timer reload in the header, and a multi-frame chip rate is one it plays exactly."""
 
 MAX_MCU_CLOCK_HZ = 1e9
 """Fastest driver microcontroller clock accepted [Hz]: the header's constants are 32-bit (``UL`` on an AVR)."""
@@ -159,7 +163,7 @@ MAX_TIME_LIMIT_S = 86_400.0
 """Longest search budget ``--time-limit`` accepts [deterministic s]: a day."""
 
 COVERAGE_GOAL = 0.9
-"""Default share of sampled poses a site should decode at (``vlp-plan --coverage-goal``, planner.advice)."""
+"""Default share of sampled poses a site should decode at (``vlp-plan --coverage-goal``, planner.advice.advise)."""
 
 USABLE_COVERAGE = 0.5
 """Below this share of decodable sampled poses a plan is reported NOT USABLE (and vlp-plan exits 3)."""

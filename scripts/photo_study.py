@@ -17,11 +17,11 @@ import numpy as np
 sys.path[:0] = [str(Path(__file__).resolve().parents[1] / "tests" / d) for d in ("", "photo")]
 from test_photo import photograph  # noqa: E402
 
+from planner.decode.image import FrameFormat  # noqa: E402
 from planner.photo.asbuilt import locate_photo  # noqa: E402
 from planner.photo.read import photo_blobs  # noqa: E402
-from planner.plan_file import load_plan  # noqa: E402
+from planner.plan.file import load_plan  # noqa: E402
 from planner.positioning.locate import Site  # noqa: E402
-from planner.twin.receiver import FrameFormat  # noqa: E402
 from planner.twin.twin import Twin, covered_poses  # noqa: E402
 
 

@@ -71,7 +71,7 @@ def wide_plan_dir(tmp_path_factory) -> Path:
 def exact_nearest(xyz, radii, cam, poses, count: int) -> np.ndarray:
     """The ``count`` wholly seen LEDs nearest the image centre with every LED projected (no candidate
     shortcut), sorted, for the poses that see that many: the paper's window (3), the two-LED window (2)."""
-    from planner.camera import project_discs
+    from planner.camera.model import project_discs
 
     n = len(xyz)
     img = project_discs(poses, np.broadcast_to(xyz, (len(poses), n, 3)), np.broadcast_to(radii, (len(poses), n)), cam)
@@ -115,7 +115,7 @@ def hex_xy(rows: int, cols: int, pitch: float = 1.0) -> np.ndarray:
 
 def minimal_plan(luminaires: list[dict], **sections):
     """A small checked plan (as ``load_plan`` returns it) holding ``luminaires``; ``sections`` replace top-level keys."""
-    from planner.plan_file import plan_from_document
+    from planner.plan.file import plan_from_document
 
     doc = {"format": "vlp-plan/1", "generator": "vlp-plan 0.1.0", "scheme": "unique",
            "code": {"bits": 8, "max_id": 255, "naive_bits": 8, "lower_bound_bits": 8, "efficiency": 0.0,

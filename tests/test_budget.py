@@ -5,11 +5,12 @@ from __future__ import annotations
 import pytest
 
 from conftest import ROOT
-from planner import budget
 from planner.cli import plan as plan_cli
 from planner.cli import verify as verify_cli
 from planner.errors import UsageError
-from planner.pipeline import PlanOptions, make_plan, read_layout
+from planner.layout.read import read_layout
+from planner.plan import budget
+from planner.plan.pipeline import PlanOptions, make_plan
 from planner.verify import windows
 
 
@@ -55,7 +56,7 @@ def test_the_memory_check_uses_what_the_machine_has(monkeypatch):
                 "--max-poses", "100000"]),
 ])
 def test_commands_refuse_before_any_work(module, argv, tmp_path, capsys, monkeypatch):
-    import planner.pipeline as pipeline
+    import planner.plan.pipeline as pipeline
 
     monkeypatch.setattr(pipeline, "make_plan", lambda *a, **k: pytest.fail("planned beyond the budget"))
     out = tmp_path / "out"

@@ -2,8 +2,8 @@ import math
 
 import pytest
 
-from planner.camera import Camera
-from planner.camera_file import read_camera
+from planner.camera.file import read_camera
+from planner.camera.model import Camera
 from planner.errors import InputError
 
 

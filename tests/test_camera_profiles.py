@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from conftest import ROOT
-from planner.camera import Camera
-from planner.camera_file import camera_from, camera_profiles
+from planner.camera.file import camera_from, camera_profiles
+from planner.camera.model import Camera
 from planner.errors import UsageError
 
 PROFILES = camera_profiles()
@@ -91,7 +91,7 @@ def test_vlp_plan_and_verify_take_a_profile_by_name(tmp_path):
 
 
 def test_docs_list_every_profile_with_its_figures_and_the_example_file_reads(tmp_path):
-    from planner.camera_file import read_camera
+    from planner.camera.file import read_camera
 
     text = (ROOT / "docs" / "camera.md").read_text()
     table = text[text.index("## Profiles"):text.index("## Calibration")]

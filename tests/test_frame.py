@@ -6,9 +6,9 @@ import pytest
 
 from conftest import ROOT
 from planner.errors import InputError, PlanningError
-from planner.frame import FOUR_B_SIX_B, LINE_CODES, decode_stream, frame_chips, longest_run
-from planner.modulation import choose_timing
-from planner.plan_file import load_plan
+from planner.modulation.frame import FOUR_B_SIX_B, LINE_CODES, decode_stream, frame_chips, longest_run
+from planner.modulation.timing import choose_timing
+from planner.plan.file import load_plan
 
 
 def test_4b6b_table_is_balanced_and_one_to_one():

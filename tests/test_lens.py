@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.errors import InputError
-from planner.plan_file import CameraFields
+from planner.plan.file import CameraFields
 
 WIDE = Camera.from_fov(math.radians(80), lens="pinhole", distortion=(-0.3, 0.1, 0.001, -0.0005, -0.02))
 FISHEYE = Camera.from_fov(math.radians(120), lens="fisheye", distortion=(0.05, -0.01, 0.002, 0.0))

@@ -6,11 +6,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import minimal_plan
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.errors import InputError, PlanningError
-from planner.frame import line_code
-from planner.modulation import choose_timing, choose_video_timing, modulate
-from planner.multiframe import EDGE_ROWS, OVERLAP_CHIPS, candidate_rates, coverage_margin, fit_video, rows_needed
+from planner.modulation.frame import line_code
+from planner.modulation.multiframe import (
+    EDGE_ROWS,
+    OVERLAP_CHIPS,
+    candidate_rates,
+    coverage_margin,
+    fit_video,
+    rows_needed,
+)
+from planner.modulation.timing import choose_timing, choose_video_timing, modulate
 
 
 def _read_slots(start: float, window: float, frame_len: int, chip_phase: float) -> set[int]:

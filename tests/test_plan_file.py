@@ -9,7 +9,7 @@ import yaml
 from conftest import ROOT
 from planner.cli.plan import main as plan_main
 from planner.errors import InputError
-from planner.plan_file import PlanFile, load_plan
+from planner.plan.file import PlanFile, load_plan
 
 EDITS = {  # what a careless or hostile edit does -> the field the message must name
     "id-text": (lambda d: d["luminaires"][3].update(id="abc"), "luminaires[3].id"),

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from planner._files import jinja_environment, write_text_atomically
+from planner.defaults import MCU_CLOCK_HZ
 from planner.errors import UsageError
 from planner.firmware.render import default_template_dir
 
@@ -36,7 +37,7 @@ class BlinkTimer:
         return self.mcu_clock_hz / (2 * self.prescaler * (self.compare + 1))
 
 
-def blink_timer(blink_hz: float, mcu_clock_hz: float = 16e6) -> BlinkTimer:
+def blink_timer(blink_hz: float, mcu_clock_hz: float = MCU_CLOCK_HZ) -> BlinkTimer:
     """The setting closest to ``blink_hz`` [Hz]; :class:`UsageError` if the MCU cannot make it."""
     half_cycles = mcu_clock_hz / (2 * blink_hz)
     if half_cycles < MIN_TOGGLE_CYCLES:

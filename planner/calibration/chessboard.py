@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.errors import InputError
 
 DETECT_PX = 1000

@@ -20,13 +20,14 @@ from typing import TYPE_CHECKING
 
 from planner._files import write_text_atomically
 from planner.cli import common as cli
+from planner.defaults import MCU_CLOCK_HZ
 from planner.errors import InputError, UsageError
 
 if TYPE_CHECKING:
     import numpy as np
 
     from planner.calibration.chessboard import Board
-    from planner.camera import Camera
+    from planner.camera.model import Camera
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -57,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--blink-hz", type=cli.positive_float, metavar="HZ", help="the luminaire's blink rate [Hz]")
     g.add_argument("--blink-firmware", metavar="DIR",
                    help="write the blinking test luminaire's firmware (AVR C, ATmega328P) for --blink-hz into DIR")
-    g.add_argument("--mcu-clock-hz", type=cli.positive_float, default=16e6, metavar="HZ",
+    g.add_argument("--mcu-clock-hz", type=cli.positive_float, default=MCU_CLOCK_HZ, metavar="HZ",
                    help="the test driver's clock, for --blink-firmware (default 16e6)")
     g = p.add_argument_group("the paper's focal-length fit (section 2.4)")
     g.add_argument("--heights", nargs="+", metavar="M=PHOTO",

@@ -39,8 +39,8 @@ from planner.defaults import (
 from planner.errors import ExitCode, InputError, PlannerError, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
-    from planner.camera import Camera
-    from planner.pipeline import ReadOptions
+    from planner.camera.model import Camera
+    from planner.layout.read import ReadOptions
 
 
 class Parser(argparse.ArgumentParser):
@@ -137,8 +137,8 @@ def add_reading_flags(p: argparse.ArgumentParser, title: str, what: str) -> None
 
 
 def read_options(args: argparse.Namespace) -> ReadOptions:
-    """The :class:`~planner.pipeline.ReadOptions` the flags of :func:`add_reading_flags` ask for."""
-    from planner.pipeline import ReadOptions
+    """The :class:`~planner.layout.read.ReadOptions` the flags of :func:`add_reading_flags` ask for."""
+    from planner.layout.read import ReadOptions
 
     return ReadOptions(args.units, args.preset, tuple(args.layer), tuple(args.block), args.height, args.radius,
                        args.room, args.storey)
@@ -214,8 +214,8 @@ def error_terms(args: argparse.Namespace):
 
 def camera_from_args(args, default: Camera | None = None) -> Camera:
     """The camera ``--camera`` names (a profile or a file), else ``default`` (the plan's), else the paper's."""
-    from planner.camera import Camera
-    from planner.camera_file import camera_from
+    from planner.camera.file import camera_from
+    from planner.camera.model import Camera
 
     if not args.camera:
         return default or Camera()

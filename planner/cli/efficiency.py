@@ -80,8 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     missing = [str(p) for p in paths.values() if not p.is_file()]
     if missing:
         raise UsageError(f"{missing[0]}: no such file; give --layouts DIR with grid-32/256/512.yaml")
-    from planner.pipeline import read_layout
-    from planner.plan_file import load_plan
+    from planner.layout.read import read_layout
+    from planner.plan.file import load_plan
     from planner.studies.efficiency import curve, paper_grid, site_figures, table_row
 
     site = site_figures(load_plan(args.plan), args.plan) if args.plan else None

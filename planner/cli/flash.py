@@ -27,7 +27,7 @@ from planner.errors import ExitCode, InputError, UsageError
 if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
     from planner.flash.flasher import Versions
     from planner.flash.journal import Journal
-    from planner.plan_file import Entry, PlanFile
+    from planner.plan.file import Entry, PlanFile
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -201,8 +201,8 @@ def main(argv: list[str] | None = None) -> int:
     from planner.flash.journal import Journal
     from planner.flash.link import Link, PortLost
     from planner.flash.wire import ANY_ADDRESS
-    from planner.plan import plan_hash
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
+    from planner.plan.model import plan_hash
 
     plan = load_plan(doc_path)
     digest = plan_hash(doc_path.read_text("utf-8"))

@@ -23,7 +23,7 @@ from planner.errors import UsageError
 if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
     import numpy as np
 
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
     from planner.positioning.locate import Site, Snapshot
 
 
@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _pose(text: str, flag: str = "--simulate") -> tuple[np.ndarray, np.ndarray]:
     import numpy as np
 
-    from planner.camera import rotation_from_angles
+    from planner.camera.model import rotation_from_angles
 
     try:
         vals = [float(v) for v in text.split(",")]
@@ -78,13 +78,14 @@ def simulate(plan: PlanFile, pose: str, noise_px: float, seed: int) -> dict:
     from planner.positioning.locate import Site, Snapshot
     from planner.positioning.observation import observe
     from planner.positioning.snapshot_file import snapshot_document
+    from planner.receivers.modes import receiver_for
 
     site = Site.from_plan(plan)
     camera = plan.camera_model()
     position, rotation = _pose(pose)
     rng = np.random.default_rng(seed) if noise_px > 0 else None
     seen = observe(position, rotation, site.xyz, site.radii, camera, rng, noise_px)
-    gravity = rotation.T @ np.array([0.0, 0.0, -1.0]) if plan.receiver_mode == "gravity" else None  # exact vertical
+    gravity = receiver_for(plan.receiver_mode, "receiver.mode").exact_vertical(rotation)
     return snapshot_document(Snapshot(camera, [int(site.ids[k]) for k in seen.index], seen.ellipses, gravity))
 
 
@@ -106,7 +107,7 @@ def result_document(site: Site, snap: Snapshot | None, found, max_residual_px: f
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
     from planner.positioning.locate import Site, locate
     from planner.positioning.snapshot_file import read_snapshot
 
@@ -136,11 +137,11 @@ def main(argv: list[str] | None = None) -> int:
 
 def locate_image(plan: PlanFile, args: argparse.Namespace) -> int:
     """``--image``: decode the photo, locate it, print the result (with ``--json``, every blob)."""
+    from planner.decode.image import FrameFormat
     from planner.errors import PositioningError
     from planner.photo.asbuilt import blob_documents, locate_photo
     from planner.photo.read import photo_blobs
     from planner.positioning.locate import Site
-    from planner.twin.receiver import FrameFormat
 
     camera = cli.camera_from_args(args, plan.camera_model())
     site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)

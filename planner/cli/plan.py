@@ -24,6 +24,7 @@ from planner.defaults import (
     MAX_TIME_LIMIT_S,
     MAX_VIDEO_FPS,
     MAX_VIDEO_FRAMES,
+    MCU_CLOCK_HZ,
     RECEIVERS,
     SCHEMES,
     VIDEO_FPS,
@@ -107,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("firmware")
     g.add_argument("--templates", metavar="DIR",
                    help="render every *.j2 template in DIR per luminaire instead of the bundled ones (docs/firmware.md)")
-    g.add_argument("--mcu-clock-hz", type=cli.at_most(MAX_MCU_CLOCK_HZ), default=16e6, metavar="HZ",
+    g.add_argument("--mcu-clock-hz", type=cli.at_most(MAX_MCU_CLOCK_HZ), default=MCU_CLOCK_HZ, metavar="HZ",
                    help="clock of the drivers' microcontroller, for the timer reload in the header (default 16e6, "
                         "at most 1e9)")
     g.add_argument("--image-version", type=cli.count_up_to(MAX_IMAGE_VERSION), default=1, metavar="N",
@@ -133,18 +134,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.from_plan or args.allow_unverified:
         from planner.cli.rebuild import from_plan_command
 
-        return from_plan_command(args)
+        return from_plan_command(args, parser)
     if not args.layout:
         parser.error("the following arguments are required: LAYOUT")
-    from planner.pipeline import (
-        FirmwareOptions,
-        PlanOptions,
-        Timings,
-        default_outdir,
-        make_plan,
-        read_layout,
-        write_outputs,
-    )
+    from planner.layout.read import read_layout
+    from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
+    from planner.plan.timings import Timings
+    from planner.receivers.modes import PAPER
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
@@ -155,15 +151,17 @@ def main(argv: list[str] | None = None) -> int:
     clock = Timings(None if args.json else cli.progress)  # progress on a terminal, never with --json
     clock.stage("reading", str(args.layout))
     layout = read_layout(args.layout, args.leds, read_opts)
-    from planner.budget import check_work, plan_work
+    from planner.plan.budget import check_work, plan_work
 
     work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
-    plan = make_plan(layout, PlanOptions(args.scheme, args.time_limit, args.seed, camera, not args.no_verify,
-                                         args.poses_per_m2, args.tolerance, args.check_distance,
-                                         args.locate_method, args.error_poses_per_m2, args.line_code,
-                                         args.driver_max_hz, args.install_tolerance, cli.error_terms(args),
+    plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=args.seed,
+                                         camera=camera, verify=not args.no_verify, poses_per_m2=args.poses_per_m2,
+                                         tolerance_m=args.tolerance, check_distance=args.check_distance,
+                                         locate_method=args.locate_method, error_poses_per_m2=args.error_poses_per_m2,
+                                         line_code=args.line_code, driver_max_hz=args.driver_max_hz,
+                                         install_tolerance_m=args.install_tolerance, error_terms=cli.error_terms(args),
                                          video_fps=args.video_fps, max_video_frames=args.max_video_frames,
                                          mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
                                          accelerometer_sigma_deg=args.accelerometer_deg,
@@ -200,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         "verification": (plan.verification.summary([lum.name for lum in layout.luminaires])
                          if plan.verification is not None else None),
         "schemes_considered": plan.considered,
-        "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": "three"},
+        "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": PAPER.name},
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
@@ -217,7 +215,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"vlp-plan: timing {seconds:8.2f} s  {name}", file=sys.stderr)
     v = plan.verification
     unusable = plan.advice is not None and not plan.advice.usable
-    few = 2 if plan.receiver is not None and plan.receiver.mode == "gravity" else 3
+    mode = plan.receiver.mode if plan.receiver is not None else PAPER
+    few = mode.leds
     if v is not None and unusable:
         print(f"vlp-plan: plan written, but NOT USABLE: only {100 * v.coverage:.1f} % of sampled poses decode "
               f"({v.count(3)} of {v.poses} see fewer than {few} whole LEDs); see the advice in the summary and "
@@ -230,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
         assert v.window_set is not None  # no ambiguous pose, so the window set is what is not clean
         first = v.window_set.conflicts[0]
         names = [lum.name for lum in plan.layout.luminaires]
-        shape = "pairs" if plan.receiver is not None and plan.receiver.mode == "gravity" else "triangles"
+        shape = mode.shape
         print(f"vlp-plan: plan written, but {len(v.window_set.conflicts)} {shape} that may be windows read like "
               f"other luminaires under the {plan.assignment.scheme} scheme, first "
               + " vs ".join("(" + ", ".join(names[i] for i in t) + ")" for t in first[:2]) + "; see vlp-verify",
@@ -311,7 +310,7 @@ def _print_summary(s: dict) -> None:
 
 
 def _print_advice(a: dict) -> None:
-    from planner.advice import table, verdict
+    from planner.advice.advise import table, verdict
 
     print(f"  verdict  {verdict(a)}")
     if a["changes"]:
@@ -325,7 +324,7 @@ def _print_advice(a: dict) -> None:
 
 def _list_cameras(as_json: bool) -> int:
     """``--list-cameras``: the bundled profiles, as a table or JSON."""
-    from planner.camera_file import profile_rows
+    from planner.camera.file import profile_rows
 
     rows = profile_rows()
     if as_json:

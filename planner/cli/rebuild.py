@@ -3,7 +3,7 @@
 The edit-verify-flash loop: edit an ``id`` in ``plan.yaml``, ``vlp-verify`` it (it names
 the luminaires whose frame no longer sends their id), ``vlp-plan --from-plan`` makes
 every frame again from its id with the plan's modulation, verifies the IDs anew and
-writes ``plan.yaml`` and ``firmware/`` (:func:`planner.firmware.rebuild.rebuild`), and
+writes ``plan.yaml`` and ``firmware/`` (:func:`planner.plan.rebuild.rebuild`), and
 ``vlp-flash`` flashes them. Exit codes: 0 written, 1 bad input or a plan that fails
 verification (nothing written), 2 usage, 3 written with ``--allow-unverified`` though
 it fails.
@@ -22,13 +22,10 @@ APPLIES = frozenset({"from_plan", "allow_unverified", "outdir", "poses_per_m2", 
 """``vlp-plan`` options that apply with ``--from-plan``; any other one given is refused, not ignored."""
 
 
-def from_plan_command(args: argparse.Namespace) -> int:
-    """Run ``vlp-plan --from-plan``; the exit code."""
-    from planner.cli.plan import build_parser
-
+def from_plan_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    """Run ``vlp-plan --from-plan`` with ``args`` parsed by vlp-plan's ``parser``; the exit code."""
     if not args.from_plan:
         raise UsageError("--allow-unverified is for --from-plan PLAN")
-    parser = build_parser()
     defaults = vars(parser.parse_args([]))
     for action in parser._actions:
         dest = action.dest
@@ -37,10 +34,10 @@ def from_plan_command(args: argparse.Namespace) -> int:
         flag = action.option_strings[-1] if action.option_strings else dest.upper()
         raise UsageError(f"{flag} does not apply with --from-plan: the plan's own layout, scheme, camera and "
                          "modulation are kept; give only the verification and firmware options")
-    from planner.budget import check_work, verify_work
     from planner.cli import common as cli
-    from planner.firmware.rebuild import rebuild
-    from planner.plan_file import load_plan
+    from planner.plan.budget import check_work, verify_work
+    from planner.plan.file import load_plan
+    from planner.plan.rebuild import rebuild
 
     plan = load_plan(args.from_plan)
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)

@@ -18,7 +18,7 @@ from planner.cli import common as cli
 from planner.errors import ExitCode, UsageError
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -46,8 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from planner.flash.journal import Journal
-    from planner.plan import plan_hash
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
+    from planner.plan.model import plan_hash
     from planner.report.content import checklist
     from planner.report.files import write_report
 
@@ -88,12 +88,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def photo_check(plan: PlanFile, args: argparse.Namespace) -> dict:
     """``--photos``: decode and locate every photo in the folder; the report's as-built section."""
+    from planner.decode.image import FrameFormat
     from planner.errors import InputError
     from planner.photo.asbuilt import PhotoCheck, check_photo
     from planner.photo.read import SUFFIXES, photo_blobs
     from planner.positioning.locate import Site
     from planner.report.asbuilt import asbuilt_section
-    from planner.twin.receiver import FrameFormat
 
     folder = Path(args.photos)
     if not folder.is_dir():

@@ -27,8 +27,8 @@ from planner.errors import ExitCode, UsageError
 if TYPE_CHECKING:  # the stages (OpenCV, SciPy) load when the command runs, not when it parses
     import numpy as np
 
-    from planner.camera import Camera
-    from planner.plan_file import PlanFile
+    from planner.camera.model import Camera
+    from planner.plan.file import PlanFile
     from planner.twin.render import Sensor
     from planner.twin.twin import PoseResult
 
@@ -168,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError("--png needs --pose (a batch writes failed frames with --save-failures DIR)")
     cli.output_file("--png", args.png)  # its folder must exist before any frame is rendered
     sensor = _sensor(args)
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
     from planner.twin.twin import summary
 
     plan = load_plan(args.plan)

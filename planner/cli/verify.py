@@ -46,12 +46,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     map_path = cli.output_file("--map", args.map)
 
-    from planner.firmware.rebuild import failed_verdict, frame_mismatches, verify_plan_file
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
+    from planner.plan.rebuild import failed_verdict, frame_mismatches, verify_plan_file
 
     plan = load_plan(args.plan)
     mismatches = frame_mismatches(plan, args.plan)  # checked before the long part: a bad plan says so at once
-    from planner.budget import check_work, verify_work
+    from planner.plan.budget import check_work, verify_work
 
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     camera = cli.camera_from_args(args, plan.camera_model())
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     allowed = plan.advice is not None and plan.advice.allow_unusable
     passed = result.clean and (judged["usable"] or allowed) and not mismatches
     summary = result.summary(plan.names, limit=10)
-    from planner.advice import verdict
+    from planner.advice.advise import verdict
 
     said = verdict(judged)
     if mismatches:  # the verdict never contradicts the exit code

@@ -13,7 +13,7 @@ is a lookup per triple that holds it. A class that matches itself turned (a near
 shape) or whose group order disagrees with a direct match (a chain of near shapes) is entered
 in all three turns, so every match within the tolerance is a conflict of equal keys; the price
 is that such a window may not carry one label thrice. The verdict is still
-:func:`planner.codes.rivals.find_rivals` against the proved set: the groups guide the search.
+:func:`planner.verify.rivals.find_rivals` against the proved set: the groups guide the search.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.codes.rivals import counter_clockwise, shape_matches, sides
+from planner.verify.rivals import counter_clockwise, shape_matches, sides
 
 TABLE_BUDGET = 64_000_000
 """Most (group, label triple) counters kept (two int16 tables, 4 bytes per counter)."""
@@ -66,7 +66,7 @@ def _turn_ranks(triples: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, matches: np.ndarray | None = None) -> Groups:
     """Group the windows and every triple of the site within the tolerance of one of them (``matches``,
-    if already found: :func:`planner.codes.rivals.shape_matches` of these windows)."""
+    if already found: :func:`planner.verify.rivals.shape_matches` of these windows)."""
     win = _distinct_ccw(windows, xyz)
     everything = np.vstack([win, shape_matches(win, xyz, tolerance_m) if matches is None else matches])
     key = np.sort(everything, axis=1)

@@ -6,7 +6,7 @@ calls triples up to two tolerances apart alike): the pairs that must differ can 
 exactly. A pair is a window and another triple of the site (a window or not) whose sides,
 counter-clockwise in one rotation, each differ by at most the tolerance; the labels are
 valid when no pair has equal labels in all three corresponding places, which is exactly
-the verdict of :func:`planner.codes.rivals.find_rivals`. Labels are found by min-conflicts
+the verdict of :func:`planner.verify.rivals.find_rivals`. Labels are found by min-conflicts
 search with a tabu list; budgets are steps, so the result depends on the seed only.
 """
 
@@ -18,7 +18,7 @@ from typing import Protocol
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.codes.rivals import counter_clockwise, longest_side, sides, site_triples
+from planner.verify.rivals import counter_clockwise, longest_side, sides, site_triples
 
 NOISE = 0.05
 """Share of steps that move a random luminaire of the chosen conflict (to its best other label)."""

@@ -8,7 +8,7 @@ exactly those pairs (:mod:`planner.codes.pairwise`), from one bit upward. Elsewh
 collected from a dense pose sample (:func:`planner.verify.verify.design_windows`, at
 least ``DESIGN_PER_M2``) and joined by every triangle of the window set
 (:mod:`planner.verify.window_set`); IDs are found by :mod:`planner.codes.window`, with every
-other triple of the site that could read like a window (:mod:`planner.codes.rivals`) as a
+other triple of the site that could read like a window (:mod:`planner.verify.rivals`) as a
 passive triple, which no window may read like. The result
 is checked on ``CHECK_SEEDS`` independent pose samples at the verification
 density; windows that only those samples found are added and the IDs repaired,
@@ -20,15 +20,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.codes import classes, pairwise
 from planner.codes import window as window_code
 from planner.codes.assignment import Assignment, bits_for, tile_regions
-from planner.codes.rivals import counter_clockwise, find_rivals, longest_side, sides, site_triples
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
 from planner.layout.model import area_m2
 from planner.verify.proof import Proof
+from planner.verify.rivals import counter_clockwise, find_rivals, longest_side, sides, site_triples
 from planner.verify.verify import Verification, classify, design_windows, observe_site
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area

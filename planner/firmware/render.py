@@ -21,9 +21,10 @@ from pathlib import Path
 import jinja2
 
 from planner._files import jinja_environment
+from planner.defaults import MCU_CLOCK_HZ
 from planner.errors import InputError, UsageError
 from planner.firmware.image import config_image, pack_chips
-from planner.plan_file import Entry, PlanFile
+from planner.plan.file import Entry, PlanFile
 
 IMAGE_FILE = "vlp_config.bin"
 
@@ -130,7 +131,7 @@ def _render(env: jinja2.Environment, template_dir: Path, name: str, context: dic
     raise InputError(f"{where}{f' line {line}' if line else ''}: {message}") from None
 
 
-def render_firmware(plan: PlanFile, plan_hash: str, *, template_dir: Path | None = None, mcu_clock_hz: float = 16e6,
+def render_firmware(plan: PlanFile, plan_hash: str, *, template_dir: Path | None = None, mcu_clock_hz: float = MCU_CLOCK_HZ,
                     image_version: int = 1) -> dict[str, bytes]:
     """Every luminaire's artifacts as ``{"firmware/<folder>/<file>": content}``."""
     if not re.fullmatch(r"[0-9a-f]{16}", plan_hash):
@@ -163,7 +164,7 @@ def render_firmware(plan: PlanFile, plan_hash: str, *, template_dir: Path | None
 
 
 def write_firmware(plan: PlanFile, plan_hash: str, outdir: Path, *, template_dir: Path | None = None,
-                   mcu_clock_hz: float = 16e6, image_version: int = 1) -> list[Path]:
+                   mcu_clock_hz: float = MCU_CLOCK_HZ, image_version: int = 1) -> list[Path]:
     """Write :func:`render_firmware`'s files under ``outdir`` (a staging folder); return their paths."""
     files = render_firmware(plan, plan_hash, template_dir=template_dir, mcu_clock_hz=mcu_clock_hz,
                             image_version=image_version)

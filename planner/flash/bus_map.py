@@ -17,7 +17,7 @@ from planner._schema import validated
 from planner.errors import InputError
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 MAX_BYTES = 8 << 20
 """Most bytes of a bus map read (65,534 rows of a 100-character name fit)."""

@@ -28,7 +28,7 @@ from planner.layout.dxf import load_drawing
 from planner.layout.model import Layout
 
 if TYPE_CHECKING:
-    from planner.plan_file import Entry
+    from planner.plan.file import Entry
 
 __all__ = ["write_annotated_dxf", "dxf_bytes", "fixed_metadata", "ID_LAYER", "LUM_LAYER", "APPID"]
 
@@ -91,7 +91,7 @@ def write_annotated_dxf(
         Output ``.dxf``; never the source drawing.
     layout : Layout
         The layout the plan was made from; ``layout.unit`` gives the drawing unit.
-    entries : sequence of planner.plan_file.Entry
+    entries : sequence of planner.plan.file.Entry
         One per luminaire, as the plan holds them (``name``, position and ``radius`` [m], ``id``,
         ``parity``, ``region``).
     source_path : str or Path, optional

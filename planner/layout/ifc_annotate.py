@@ -21,7 +21,7 @@ from planner.layout.ifc import open_model
 from planner.layout.model import Layout
 
 if TYPE_CHECKING:
-    from planner.plan_file import Entry
+    from planner.plan.file import Entry
 
 __all__ = ["write_annotated_ifc", "PSET"]
 

@@ -158,7 +158,7 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     radii = np.array([lum.radius for lum in layout.luminaires])
     if not np.all(np.isfinite(xy)) or not np.all(radii > 0):
         raise InputError(f"{where}: a luminaire has a non-finite position or a radius <= 0")
-    for lum in layout.luminaires:  # the bounds plan.yaml's reader holds every plan to (planner.plan_file)
+    for lum in layout.luminaires:  # the bounds plan.yaml's reader holds every plan to (planner.plan.file)
         if (max(abs(lum.x), abs(lum.y)) > MAX_EXTENT_M or not 0 < lum.z <= MAX_HEIGHT_M
                 or not MIN_RADIUS_M <= lum.radius <= MAX_RADIUS_M):
             raise InputError(

@@ -39,7 +39,7 @@ def _rows(counter: Counter) -> list[dict]:
 def _read(report: dict, path: Path, leds: int | None, options) -> None:
     """What ``vlp-plan`` would read: the unit, the luminaires and notes, or the error it stops with."""
     from planner.layout.dxf import INSPECT_HINT
-    from planner.pipeline import read_layout
+    from planner.layout.read import read_layout
 
     try:
         layout = read_layout(path, leds, options)
@@ -51,8 +51,8 @@ def _read(report: dict, path: Path, leds: int | None, options) -> None:
 
 
 def survey(path: str | Path, leds: int | None = None, options=None) -> dict:
-    """The report on ``path`` (``.dxf`` or ``.ifc``) read with ``options`` (a ``pipeline.ReadOptions``)."""
-    from planner.pipeline import ReadOptions
+    """The report on ``path`` (``.dxf`` or ``.ifc``) read with ``options`` (a ``planner.layout.read.ReadOptions``)."""
+    from planner.layout.read import ReadOptions
 
     path = Path(path)
     options = options or ReadOptions()

@@ -21,9 +21,9 @@ from itertools import combinations
 
 import numpy as np
 
-from planner.camera import Camera, disc_dual_conic
+from planner.camera.ellipse import centre_and_shape
+from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import MAX_RESIDUAL_PX
-from planner.ellipse import centre_and_shape
 from planner.errors import PositioningError
 from planner.photo.decode import PhotoBlob
 from planner.positioning.locate import Located, Site, Snapshot, locate

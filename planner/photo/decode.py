@@ -1,6 +1,6 @@
 """Every LED blob of a photo: its ellipse, stripe period and ID, or why no ID was read.
 
-The stages are the receiver twin's (:mod:`planner.twin.receiver`: blobs from the
+The stages are the receiver twin's (:mod:`planner.decode.image`: blobs from the
 threshold closed across the stripes, sub-pixel rim points where each lit row crosses
 half its plateau, the ellipse fitted to them, the inner chords' levels thresholded to
 chips, the preamble found, the word read), run on :func:`planner.photo.read.receiver_frame`.
@@ -31,19 +31,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera
-from planner.ellipse import Ellipse, fit_ellipse
-from planner.errors import InputError, PositioningError
-from planner.frame import decode_stream
-from planner.twin.receiver import (
+from planner.camera.ellipse import Ellipse, fit_ellipse
+from planner.camera.model import Camera
+from planner.decode.image import (
     BORDER_PX,
     MIN_BLOB_PX,
     FrameFormat,
-    _fits_blob,
-    _rim_points,
-    _row_levels,
+    fits_blob,
+    rim_points,
+    row_levels,
     segment,
 )
+from planner.errors import InputError, PositioningError
+from planner.modulation.frame import decode_stream
 
 FIT_SHARE = 0.25
 """Share of a blob's plateau (above the ceiling) a pixel must reach to count in the fit check; blooming's halo stays below."""
@@ -73,7 +73,7 @@ class PhotoBlob:
 
 
 def inner_runs(levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The runs of a row-level sequence thresholded halfway (as :func:`planner.twin.receiver.chips_from_levels`): each whole run's
+    """The runs of a row-level sequence thresholded halfway (as :func:`planner.decode.image.chips_from_levels`): each whole run's
     value (lit or dark) and length [rows], the partial runs at both ends dropped; empty without contrast."""
     levels = levels[np.isfinite(levels)]
     if len(levels) < 4:
@@ -183,7 +183,7 @@ def _decode_blob(frame: np.ndarray, labels: np.ndarray, k: int, bbox: tuple, lev
     x0, y0 = max(0, x - pad), max(0, y - pad)
     roi = frame[y0:min(height, y + h + pad), x0:min(width, x + w + pad)]
     own = (labels[y0:y0 + roi.shape[0], x0:x0 + roi.shape[1]] == k) & (roi > threshold)
-    pts = _rim_points(roi, own, threshold, level) + (x0, y0)
+    pts = rim_points(roi, own, threshold, level) + (x0, y0)
     try:
         ellipse = fit_ellipse(pts)
         ideal = ellipse
@@ -198,10 +198,10 @@ def _decode_blob(frame: np.ndarray, labels: np.ndarray, k: int, bbox: tuple, lev
     half = np.sqrt(np.diag(ellipse.shape @ ellipse.shape))
     inside = np.all(ellipse.centre - half >= -BORDER_PX) and np.all(
         ellipse.centre + half <= (width - 1 + BORDER_PX, height - 1 + BORDER_PX))
-    if not inside or not _fits_blob(strong, ellipse, x0, y0, slack=4.0 + 3.0 * blur_px + BLOOM_PX):
+    if not inside or not fits_blob(strong, ellipse, x0, y0, slack=4.0 + 3.0 * blur_px + BLOOM_PX):
         problem = "cut by the image border" if touching or not inside else MISFIT
         return PhotoBlob(bbox, ellipse, ideal, None, "", None, problem)
-    levels = _row_levels(roi, ellipse, x0, y0, margin=1.0 + blur_px)
+    levels = row_levels(roi, ellipse, x0, y0, margin=1.0 + blur_px)
     values, runs = inner_runs(levels)
     period = stripe_period_rows(runs)
     chips = chips_from_runs(values, runs, rows_per_chip)

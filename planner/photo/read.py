@@ -1,7 +1,7 @@
 """A phone photo as the receiver needs it: linear luminance above the lit ceiling, in the twin's DN.
 
 A phone saves 8-bit (or 16-bit PNG) sRGB: gamma-encoded colour. The receiver's
-stages (:mod:`planner.twin.receiver`) work on linear light, where a row's level is
+stages (:mod:`planner.decode.image`) work on linear light, where a row's level is
 proportional to the LED's drive over the row's exposure, on a dark ceiling. So:
 
 1. **Read** the pixels as the sensor wrote them (``IMREAD_IGNORE_ORIENTATION``: an
@@ -24,11 +24,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
+from planner.decode.image import FrameFormat
 from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
 from planner.errors import InputError
 from planner.photo.decode import PhotoBlob, decode_photo
-from planner.twin.receiver import FrameFormat
 
 LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)
 """Rec. 709 luminance weights in OpenCV's channel order (blue, green, red)."""

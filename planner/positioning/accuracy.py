@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.camera import Camera, Poses, rotation_from_angles
+from planner.camera.model import Camera, Poses, rotation_from_angles
 from planner.defaults import ACCELEROMETER_SIGMA_DEG, ERROR_POSES_PER_M2, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import PositioningError
 from planner.plot_style import plain_log_ticks, save_png, styled
@@ -30,7 +30,7 @@ from planner.positioning.error_terms import (
     observe_with,
     streams,
 )
-from planner.positioning.gravity import locate_gravity, window_order
+from planner.positioning.gravity import accelerometer, locate_gravity, window_order  # the twin's accelerometer too
 from planner.positioning.locate import METHODS
 from planner.positioning.observation import Sighting
 
@@ -256,10 +256,13 @@ class SiteAccuracy:
         return edges[0], edges[1], med, p90, count
 
 
+METHOD_TEXT = {"gravity": "gravity method (two whole LEDs plus gravity from the accelerometer)"}
+"""Methods whose name alone does not say what they use."""
+
+
 def method_text(method: str) -> str:
     """A method's name for summaries and figures; the gravity method says what it uses."""
-    return "gravity method (two whole LEDs plus gravity from the accelerometer)" if method == "gravity" else \
-        f"{method} method"
+    return METHOD_TEXT.get(method, f"{method} method")
 
 
 def error_per_m2(area: np.ndarray, per_m2: float = ERROR_POSES_PER_M2) -> float:
@@ -311,22 +314,45 @@ def site_errors(xyz: np.ndarray, radii: np.ndarray, poses: Poses, camera: Camera
     ``gravity`` is the two-LED receiver: every pose draws the accelerometer's vertical (error
     ``terms.gravity_rad``, the twin's model), two whole LEDs suffice, the two whose rays are nearest
     the optical axis start the fix (its window) and every LED seen refines it."""
-    from planner.twin.twin import accelerometer  # the twin's accelerometer model, one for both
-
     rngs = streams(seed)
     leds = installed(xyz, terms.install_m, rngs["install"])
     believed = camera.ideal()
     out = np.full(len(poses), np.nan)
     rotations = poses.rotation
+    error = _PER_POSE.get(method, _window_error)(method, xyz, radii, believed, terms, rngs, accelerometer_sigma_rad)
     for k in range(len(poses)):
         seen = observe_with(poses.position[k], rotations[k], leds, radii, camera, terms, rngs)
-        if method == "gravity":
-            g = accelerometer(rotations[k], terms.gravity_rad, rngs["accelerometer"])
-            if len(seen.index) >= 2:
-                order = window_order(np.array([e.centre for e in seen.ellipses]), believed)
-                seen = Sighting(seen.index[order], [seen.ellipses[i] for i in order])
-                out[k] = _error(lambda x, r, e, c, g=g: locate_gravity(x, r, e, c, g, accelerometer_sigma_rad),
-                                seen, xyz, radii, believed, poses.position[k])
-        elif len(seen.index) >= 3:
-            out[k] = _error(METHODS[method], seen, xyz, radii, believed, poses.position[k])
+        out[k] = error(seen, rotations[k], poses.position[k])
     return out
+
+
+def _window_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Camera, terms: ErrorTerms, rngs: dict,
+                  accelerometer_sigma_rad: float):
+    """Per-pose error [m] of ``method`` on three or more whole LEDs (NaN with fewer)."""
+    fix = METHODS[method]
+
+    def error(seen: Sighting, rotation: np.ndarray, position: np.ndarray) -> float:
+        return _error(fix, seen, xyz, radii, believed, position) if len(seen.index) >= 3 else np.nan
+
+    return error
+
+
+def _gravity_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Camera, terms: ErrorTerms, rngs: dict,
+                   accelerometer_sigma_rad: float):
+    """Per-pose error [m] of the gravity method: every pose draws the accelerometer's vertical; two whole LEDs, the
+    two whose rays are nearest the optical axis first (its window), suffice (NaN with fewer)."""
+
+    def error(seen: Sighting, rotation: np.ndarray, position: np.ndarray) -> float:
+        g = accelerometer(rotation, terms.gravity_rad, rngs["accelerometer"])
+        if len(seen.index) < 2:
+            return np.nan
+        order = window_order(np.array([e.centre for e in seen.ellipses]), believed)
+        seen = Sighting(seen.index[order], [seen.ellipses[i] for i in order])
+        return _error(lambda x, r, e, c: locate_gravity(x, r, e, c, g, accelerometer_sigma_rad),
+                      seen, xyz, radii, believed, position)
+
+    return error
+
+
+_PER_POSE = {"gravity": _gravity_error}
+"""Per-pose error models that are not a three-LED method of :data:`planner.positioning.locate.METHODS`."""

@@ -18,7 +18,7 @@ calibration is off, and a rolling shutter on a moving phone. The terms
   middle row while the phone moves at ``speed_m_s`` in a random horizontal direction
   and turns at ``turn_rad_s`` about a random axis; the truth is the pose at the middle row.
 - **accelerometer**: the gravity receiver's measured vertical is the true one turned by
-  ``gravity_rad`` RMS (the twin's model, :func:`planner.twin.twin.accelerometer`); off (0) by
+  ``gravity_rad`` RMS (the twin's model, :func:`planner.positioning.gravity.accelerometer`); off (0) by
   default, a gravity plan switches it on at its receiver's ``accelerometer_sigma_deg``.
 
 Each term draws from its own random stream, so a run with one term alone and a run
@@ -34,7 +34,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from planner.camera import Camera, disc_dual_conic
+from planner.camera.ellipse import centre_and_shape, fit_ellipse
+from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import (
     DISTORTION_RESIDUAL_PX,
     FOCAL_ERROR_PCT,
@@ -44,7 +45,6 @@ from planner.defaults import (
     PHONE_TURN_DEG_S,
     PRINCIPAL_ERROR_PX,
 )
-from planner.ellipse import centre_and_shape, fit_ellipse
 from planner.positioning.observation import Sighting, seen_leds
 
 TERMS = {

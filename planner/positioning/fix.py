@@ -1,8 +1,8 @@
 """A position found from one image, and how well it explains what the camera saw.
 
 Shared by both positioning methods: the exact LED images a pose predicts
-(:func:`planner.camera.disc_dual_conic`) are compared with the ellipses seen,
-centre and shape matrix (:mod:`planner.ellipse`), five residuals per LED [px].
+(:func:`planner.camera.model.disc_dual_conic`) are compared with the ellipses seen,
+centre and shape matrix (:mod:`planner.camera.ellipse`), five residuals per LED [px].
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from itertools import combinations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from planner.camera import Camera, disc_conics, rotation_from_angles
-from planner.ellipse import Ellipse, centre_and_shape
+from planner.camera.ellipse import Ellipse, centre_and_shape
+from planner.camera.model import Camera, disc_conics, rotation_from_angles
 from planner.errors import PositioningError
 
 BAD_PX = 1e4  # residual standing in for an LED the pose would not image as an ellipse

@@ -1,4 +1,4 @@
-"""Two LEDs plus gravity: the gravity-aided receiver's fix and identification.
+"""Two LEDs plus gravity: the gravity-aided receiver's fix (identification: :func:`planner.positioning.locate.identify_gravity`).
 
 The accelerometer gives the vertical in the camera frame to about a degree (the paper does not
 use it; docs/positioning.md says why we do). With the tilt known, the bearings to two LEDs on a
@@ -10,7 +10,7 @@ the camera's plan position is ``x_a - s R(ψ) o_a`` and its height ``z_a - s``. 
 by least squares over the full pose on every identified LED's exact image against its ellipse
 (centre and shape, whitened by one pixel: the ellipses' sizes also measure the distance) and on
 the measured gravity (whitened by its uncertainty), so the gravity error is weighed, not trusted.
-Rays come from :meth:`planner.camera.Camera.rays`, so a distorting lens is handled.
+Rays come from :meth:`planner.camera.model.Camera.rays`, so a distorting lens is handled.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from planner.camera import Camera
-from planner.defaults import ACCELEROMETER_SIGMA_DEG, MAX_RESIDUAL_PX
-from planner.ellipse import Ellipse
+from planner.camera.ellipse import Ellipse
+from planner.camera.model import Camera
+from planner.defaults import ACCELEROMETER_SIGMA_DEG
 from planner.errors import PositioningError
 from planner.positioning.fix import Fix, observed, residuals_batch, rms
 from planner.positioning.undistort import ideal_ellipses
@@ -99,47 +99,10 @@ def window_order(centres_px: np.ndarray, camera: Camera) -> np.ndarray:
     return np.argsort(-camera.rays(np.asarray(centres_px, float))[:, 2], kind="stable")
 
 
-def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
-    """The one place whose luminaires explain the snapshot, from its two-LED window and gravity.
-
-    Every pair of luminaires carrying the window's two IDs (no farther apart than the plan's window
-    length cap, where it has one: a longer pair is no window of the plan) is tried: closed form, the other LEDs
-    matched to the same-ID luminaire imaged nearest, a refined fix on all of them; a place counts
-    when that fix explains every ellipse within ``max_residual_px``. Exactly one must remain.
-    """
-    from planner.positioning.locate import Located, _complete, only_place
-
-    if snap.gravity is None:
-        raise PositioningError("the snapshot has no gravity: the two-LED receiver needs the accelerometer's vertical")
-    cam, n = snap.camera, len(snap.ids)
-    if n < 2:
-        raise PositioningError(f"{n} LED{'s' if n != 1 else ''} in the image: a position with gravity needs two")
-    centres = np.array([e.centre for e in snap.ellipses])
-    first, second = (int(k) for k in window_order(centres, cam)[:2])
-    rays = cam.rays(centres)
-    found, tried, best_rejected = [], set(), np.inf
-    cap = site.window_length_cap_m
-    for a in np.flatnonzero(site.ids == snap.ids[first]):
-        for b in np.flatnonzero(site.ids == snap.ids[second]):
-            if a == b or (cap is not None and np.linalg.norm(site.xyz[a] - site.xyz[b]) > cap + 1e-9):
-                continue
-            try:  # the closed form, refined on the two (their images' sizes check the spacing)
-                start = two_point_pose(site.xyz[[a, b]], rays[[first, second]], snap.gravity)
-                position, rotation, _ = refine_gravity(*start, site.xyz[[a, b]], site.radii[[a, b]],
-                                                       [snap.ellipses[first], snap.ellipses[second]], snap.gravity,
-                                                       snap.gravity_sigma_rad, cam)
-            except PositioningError:
-                continue
-            lum = _complete(site, snap, [first, second], (a, b), position, rotation)
-            if lum is None or len(set(lum.tolist())) < n or tuple(lum) in tried:
-                continue
-            tried.add(tuple(lum))
-            order = [first, second] + [k for k in range(n) if k not in (first, second)]
-            fix = locate_gravity(site.xyz[lum[order]], site.radii[lum[order]], [snap.ellipses[k] for k in order],
-                                 cam, snap.gravity, snap.gravity_sigma_rad)
-            if fix.residual_px > max_residual_px:
-                best_rejected = min(best_rejected, fix.residual_px)
-            else:
-                found.append(Located(fix, lum))
-    return only_place(site, found, best_rejected, max_residual_px, " with gravity",
-                      f"{snap.ids[first]} and {snap.ids[second]}", "the camera intrinsics and the gravity vector")
+def accelerometer(rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
+    """The phone's measured down direction in the camera frame: the true one turned by a random
+    angle, each of its two components Gaussian with ``sigma_rad / sqrt 2`` (RMS error ``sigma_rad``)."""
+    g = rotation.T @ np.array([0.0, 0.0, -1.0])
+    perp = np.linalg.svd(g[None])[2][1:]
+    out = g + rng.normal(0.0, sigma_rad / math.sqrt(2), 2) @ perp
+    return out / np.linalg.norm(out)

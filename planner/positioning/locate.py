@@ -16,17 +16,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.camera import Camera, disc_dual_conic
+from planner.camera.ellipse import Ellipse, centre_and_shape
+from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import MAX_RESIDUAL_PX
-from planner.ellipse import Ellipse, centre_and_shape
 from planner.errors import InputError, PositioningError
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
+from planner.positioning.gravity import locate_gravity, refine_gravity, two_point_pose, window_order
 from planner.positioning.paper import distance_weak_perspective, locate_paper
 from planner.positioning.perspective import initial_poses, locate_perspective
 from planner.positioning.undistort import ideal_ellipses
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 SPACING_TOLERANCE = 0.35
 """Relative error allowed between a luminaire pair's spacing and its weak-perspective estimate."""
@@ -122,8 +123,6 @@ def _refit(site: Site, snap: Snapshot, luminaires: np.ndarray, leds: list[int]) 
     ellipses = [snap.ellipses[k] for k in leds]
     xyz, radii = site.xyz[luminaires], site.radii[luminaires]
     if snap.gravity is not None:
-        from planner.positioning.gravity import locate_gravity
-
         fix = locate_gravity(xyz, radii, ellipses, snap.camera, snap.gravity, snap.gravity_sigma_rad)
     else:
         fix = locate_perspective(xyz, radii, ellipses, snap.camera)
@@ -193,6 +192,50 @@ def only_place(site: Site, found: list[Located], best_rejected: float, max_resid
     return found[0]
 
 
+def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
+    """The one place whose luminaires explain the snapshot, from its two-LED window and gravity.
+
+    Every pair of luminaires carrying the window's two IDs (no farther apart than the plan's window
+    length cap, where it has one: a longer pair is no window of the plan) is tried: closed form, the other LEDs
+    matched to the same-ID luminaire imaged nearest, a refined fix on all of them; a place counts
+    when that fix explains every ellipse within ``max_residual_px``. Exactly one must remain.
+    """
+    if snap.gravity is None:
+        raise PositioningError("the snapshot has no gravity: the two-LED receiver needs the accelerometer's vertical")
+    cam, n = snap.camera, len(snap.ids)
+    if n < 2:
+        raise PositioningError(f"{n} LED{'s' if n != 1 else ''} in the image: a position with gravity needs two")
+    centres = np.array([e.centre for e in snap.ellipses])
+    first, second = (int(k) for k in window_order(centres, cam)[:2])
+    rays = cam.rays(centres)
+    found, tried, best_rejected = [], set(), np.inf
+    cap = site.window_length_cap_m
+    for a in np.flatnonzero(site.ids == snap.ids[first]):
+        for b in np.flatnonzero(site.ids == snap.ids[second]):
+            if a == b or (cap is not None and np.linalg.norm(site.xyz[a] - site.xyz[b]) > cap + 1e-9):
+                continue
+            try:  # the closed form, refined on the two (their images' sizes check the spacing)
+                start = two_point_pose(site.xyz[[a, b]], rays[[first, second]], snap.gravity)
+                position, rotation, _ = refine_gravity(*start, site.xyz[[a, b]], site.radii[[a, b]],
+                                                       [snap.ellipses[first], snap.ellipses[second]], snap.gravity,
+                                                       snap.gravity_sigma_rad, cam)
+            except PositioningError:
+                continue
+            lum = _complete(site, snap, [first, second], (a, b), position, rotation)
+            if lum is None or len(set(lum.tolist())) < n or tuple(lum) in tried:
+                continue
+            tried.add(tuple(lum))
+            order = [first, second] + [k for k in range(n) if k not in (first, second)]
+            fix = locate_gravity(site.xyz[lum[order]], site.radii[lum[order]], [snap.ellipses[k] for k in order],
+                                 cam, snap.gravity, snap.gravity_sigma_rad)
+            if fix.residual_px > max_residual_px:
+                best_rejected = min(best_rejected, fix.residual_px)
+            else:
+                found.append(Located(fix, lum))
+    return only_place(site, found, best_rejected, max_residual_px, " with gravity",
+                      f"{snap.ids[first]} and {snap.ids[second]}", "the camera intrinsics and the gravity vector")
+
+
 def _fmt(p: np.ndarray) -> str:
     return "(" + ", ".join(f"{v:.2f}" for v in p) + ") m"
 
@@ -207,8 +250,6 @@ def locate(site: Site, snap: Snapshot, method: str = "perspective", max_residual
                              "check the decoding, or that this plan is the site's")
     snap = snap.ideal()
     if snap.gravity is not None:  # the gravity-aided receiver: two-LED window, two points plus gravity
-        from planner.positioning.gravity import identify_gravity
-
         return identify_gravity(site, snap, max_residual_px)
     found = identify(site, snap, max_residual_px)
     if method == "perspective":

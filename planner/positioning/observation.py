@@ -1,10 +1,10 @@
 """The observation model: what a receiver measures of the LEDs a camera pose sees.
 
 For each LED wholly inside the image (the verification stage's rule and camera
-model, :mod:`planner.camera`), the disc's rim is projected exactly, one point per
+model, :mod:`planner.camera.model`), the disc's rim is projected exactly, one point per
 pixel of perimeter as an edge tracer finds them; each point gets Gaussian pixel
 noise and is rounded to the pixel grid; the receiver then fits an ellipse
-(:func:`planner.ellipse.fit_ellipse`). Lengths in metres, image quantities in pixels.
+(:func:`planner.camera.ellipse.fit_ellipse`). Lengths in metres, image quantities in pixels.
 
 With lens distortion the rim is projected through the lens (``Camera.project``), so the
 ellipses are fitted to what a phone sees: no conic, and no exact ellipse even without
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera, disc_dual_conic, project_discs_at
+from planner.camera.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
+from planner.camera.model import Camera, disc_dual_conic, project_discs_at
 from planner.defaults import NOISE_PX
-from planner.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
 
 EXACT_RIM_POINTS = 720
 """Noiseless rim points an exact observation through a distorting lens is fitted to."""

@@ -14,8 +14,8 @@ from itertools import combinations
 import numpy as np
 from scipy.optimize import least_squares
 
-from planner.camera import Camera
-from planner.ellipse import Ellipse
+from planner.camera.ellipse import Ellipse
+from planner.camera.model import Camera
 from planner.errors import PositioningError
 from planner.positioning.fix import Fix, check_geometry, ellipse_residuals, orientation_at, rms
 from planner.positioning.undistort import ideal_ellipses

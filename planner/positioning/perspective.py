@@ -5,7 +5,7 @@ P3P on the ellipse centres (OpenCV's solver, Ding et al. 2023) and from the pape
 weak-perspective position (P3P loses a root when two roots nearly coincide), the
 ellipse sizes and shapes pick the best start, and a least-squares refinement
 over every LED seen matches each predicted exact disc image (its dual conic,
-:func:`planner.camera.disc_dual_conic`) to the fitted ellipse: centre and shape
+:func:`planner.camera.model.disc_dual_conic`) to the fitted ellipse: centre and shape
 matrix, five residuals per LED in pixels. ``docs/positioning.md`` compares this with
 the paper's weak-perspective method.
 """
@@ -17,8 +17,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from planner.camera import Camera
-from planner.ellipse import Ellipse
+from planner.camera.ellipse import Ellipse
+from planner.camera.model import Camera
 from planner.errors import PositioningError
 from planner.positioning.fix import (
     BAD_PX,

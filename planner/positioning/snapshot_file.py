@@ -18,17 +18,17 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from planner._files import load_json
 from planner._schema import Count, Finite, Positive, validated
-from planner.camera import Camera
+from planner.camera.ellipse import Ellipse
+from planner.camera.file import Distortion, LensModel, check_distortion
+from planner.camera.model import Camera
 from planner.defaults import MAX_IMAGE_PX, MAX_OBSERVED_LEDS
-from planner.ellipse import Ellipse
-from planner.lens import COEFFICIENTS, LENS_MODELS
 from planner.positioning.locate import Snapshot
 
 
@@ -44,14 +44,12 @@ class _CameraFields(BaseModel):
     cy: Finite | None = None
     width: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)]
     height: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)]
-    lens: Literal[LENS_MODELS] = "pinhole"  # type: ignore[valid-type]
-    distortion: Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)] = []
+    lens: LensModel = "pinhole"
+    distortion: Distortion = []
 
     @model_validator(mode="after")
     def _coefficients(self) -> _CameraFields:
-        if len(self.distortion) > len(COEFFICIENTS[self.lens]):
-            raise ValueError(f"the {self.lens} lens takes at most {len(COEFFICIENTS[self.lens])} distortion "
-                             f"coefficients ({' '.join(COEFFICIENTS[self.lens])}), got {len(self.distortion)}")
+        check_distortion(self.lens, self.distortion)
         return self
 
 

@@ -2,10 +2,10 @@
 
 A lens's distortion bends a disc's image out of the conic every positioning formula
 assumes (the paper's Eq. 1-14, P3P, the exact disc conics of
-:func:`planner.camera.disc_dual_conic`). The receiver therefore moves the rim back:
+:func:`planner.camera.model.disc_dual_conic`). The receiver therefore moves the rim back:
 :data:`RIM_SAMPLES` points of each fitted (distorted) ellipse are mapped through
-:meth:`planner.camera.Camera.ideal_pixels` and an ellipse is fitted to them again
-(:func:`planner.ellipse.fit_ellipse`); positioning then runs on ``camera.ideal()``.
+:meth:`planner.camera.model.Camera.ideal_pixels` and an ellipse is fitted to them again
+(:func:`planner.camera.ellipse.fit_ellipse`); positioning then runs on ``camera.ideal()``.
 docs/positioning.md ("Distortion") gives the error this leaves.
 """
 
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.camera import Camera
-from planner.ellipse import Ellipse, fit_ellipse
+from planner.camera.ellipse import Ellipse, fit_ellipse
+from planner.camera.model import Camera
 from planner.errors import PositioningError
 
 RIM_SAMPLES = 64

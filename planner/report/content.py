@@ -1,6 +1,6 @@
 """The site report's content: summary figures, the ID bill and the installers' checklist in walking order.
 
-Pure computation on a loaded plan (:class:`~planner.plan_file.PlanFile`) and, once
+Pure computation on a loaded plan (:class:`~planner.plan.file.PlanFile`) and, once
 drivers have been flashed, the as-built journal's entries; the figures are
 drawn by :mod:`planner.report.figures` and the files written by
 :mod:`planner.report.files`.
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 if TYPE_CHECKING:
-    from planner.plan_file import Entry, PlanFile
+    from planner.plan.file import Entry, PlanFile
 
 ROW_TOLERANCE = 0.5
 """Luminaires whose y differs from a row's first by less than this share of the pitch walk in that row."""
@@ -129,6 +129,7 @@ def checklist(plan: PlanFile, journal: dict[str, dict] | None = None) -> list[St
 def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
     """The report's headline figures as (label, value) pairs, from the plan."""
     from planner.positioning.accuracy import method_text
+    from planner.receivers.modes import RECEIVERS
 
     code, mod, ver, acc = plan.code, plan.modulation, plan.verification, plan.accuracy
     regions = len(set(plan.regions.tolist()))
@@ -142,14 +143,14 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
         rows.append(("verification", f"{100 * ver.coverage:.1f} % of {ver.poses} sampled poses decodable, "
                                      f"{ver.ambiguous} ambiguous"))
         if plan.advice:
-            from planner.advice import verdict
+            from planner.advice.advise import verdict
 
             rows.append(("verdict", verdict(plan.advice.model_dump())))
     else:
         rows.append(("verification", "not verified (--no-verify)"))
     if plan.receiver:  # --receiver gravity or auto: coverage per receiver mode planned
         r = plan.receiver
-        modes = {"three": "three LEDs", "gravity": "two LEDs plus gravity"}
+        modes = {name: mode.title for name, mode in RECEIVERS.items()}
         per = "; ".join(f"{modes.get(k, k)} {100 * float(c):.1f} %" for k, c in (r.get("coverage") or {}).items())
         one = (r.get("poses_seeing") or {}).get("exactly_one_led")
         rows.append(("receiver", f"{modes.get(str(r.get('mode')), r.get('mode'))} ({r.get('reason', '')}); sampled "
@@ -190,6 +191,7 @@ def error_includes(plan: PlanFile) -> str:
     """What the plan's expected-error figures include, in a sentence (pixel noise only for plans made before
     the error budget)."""
     from planner.positioning.error_terms import ErrorTerms, included_text
+    from planner.receivers.modes import extra_error_terms
 
     acc = plan.accuracy
     if acc is None:
@@ -199,7 +201,7 @@ def error_includes(plan: PlanFile) -> str:
         return (f"includes edge noise ({noise:g} px) only: " if noise is not None else "includes pixel noise only: ") + \
             "install, calibration and motion errors come on top (the plan predates the error budget)"
     terms = ErrorTerms.from_dict(acc.terms)
-    kinds = ("install", "calibration", "edge", "skew", *(("accelerometer",) if acc.method == "gravity" else ()))
+    kinds = ("install", "calibration", "edge", "skew", *extra_error_terms(acc.method))
     left = [name for name in kinds if name not in terms.active]
     return f"includes {included_text(terms)}" + (f"; leaves out {', '.join(_term_name(n) for n in left)}" if left else "")
 
@@ -244,7 +246,7 @@ class AdviceSection:
 
 def advice_section(plan: PlanFile) -> AdviceSection | None:
     """The site advice of a verified plan (``plan.yaml``'s ``advice``), or None."""
-    from planner.advice import table, verdict
+    from planner.advice.advise import table, verdict
 
     if plan.advice is None:
         return None

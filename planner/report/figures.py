@@ -18,7 +18,7 @@ from planner.plot_style import png_bytes, styled
 from planner.report.content import AdviceSection, BillLine, Stop
 
 if TYPE_CHECKING:
-    from planner.plan_file import Entry, ModulationFields, PlanFile
+    from planner.plan.file import Entry, ModulationFields, PlanFile
 
 TIMING_LUMINAIRES = 4
 """How many luminaires (with distinct IDs) the timing diagram shows."""

@@ -36,7 +36,7 @@ from planner.report.figures import (
 )
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 HTML_NAME = "site-report.html"
 PDF_NAME = "site-report.pdf"

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import matplotlib.pyplot as plt
 import numpy as np
 
-from planner.plan import Plan
+from planner.plan.model import Plan
 from planner.plot_style import save_png, styled
 
 if TYPE_CHECKING:

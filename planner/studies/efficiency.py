@@ -21,10 +21,10 @@ from planner.defaults import PAPER_LAYOUTS, PAPER_UP_TO, PITCH_M, WINDOW_UP_TO
 from planner.errors import InputError
 from planner.graph import build_graph
 from planner.layout.model import Layout, Luminaire
-from planner.pipeline import PlanOptions, make_plan
+from planner.plan.pipeline import PlanOptions, make_plan
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 PAPER_PRINTED = {32: (5, 4), 256: (8, 6), 512: (9, 6)}
 """The paper's printed figures per luminaire count: (naive bits, the scheme's bits) (section 2.2)."""

@@ -1,7 +1,7 @@
 """Render the frame a rolling-shutter camera captures of a planned ceiling: LED stripes on a dark ceiling.
 
 Every luminaire in front of the camera is drawn as its exact perspective image
-(the disc's conic, :func:`planner.camera.disc_dual_conic`), antialiased by its
+(the disc's conic, :func:`planner.camera.model.disc_dual_conic`), antialiased by its
 signed distance to the rim. Image row ``v`` is exposed from ``v * row_time_s``
 for ``exposure_s``; a pixel of LED ``k`` gets the mean of that LED's drive over
 its row's exposure, the drive being the LED's frame (``plan.yaml``'s chips)
@@ -24,9 +24,9 @@ import cv2
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from planner.camera import Camera, disc_dual_conic, project_discs_at
+from planner.camera.ellipse import centre_and_shape
+from planner.camera.model import Camera, disc_dual_conic, project_discs_at
 from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
-from planner.ellipse import centre_and_shape
 
 
 @dataclass(frozen=True)

@@ -20,19 +20,21 @@ from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
-from planner.camera import Camera, Poses, disc_dual_conic, project_discs_at
-from planner.defaults import ACCELEROMETER_SIGMA_DEG, CONGRUENCE_TOLERANCE_M
+from planner.camera.ellipse import centre_and_shape
+from planner.camera.model import Camera, Poses, disc_dual_conic, project_discs_at
+from planner.decode.image import Blob, FrameFormat, decode_frame, read_blobs, read_ellipse
+from planner.defaults import ACCELEROMETER_SIGMA_DEG
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
-from planner.ellipse import centre_and_shape
 from planner.errors import InputError, PlannerError
-from planner.positioning.locate import Site, locate
+from planner.positioning.locate import Site, Snapshot, locate
 from planner.positioning.observation import seen_leds
-from planner.twin.receiver import Blob, FrameFormat, decode_frame, read_blobs, snapshot
+from planner.receivers.base import Receiver
+from planner.receivers.modes import PAPER, receiver_for
 from planner.twin.render import Frame, Sensor, render_frame
-from planner.twin.video import VideoFormat, run_video_pose
+from planner.twin.video import VideoFormat, decode_video, shaken
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 STAGES = ("blobs", "ids", "identify", "position")
 
@@ -54,7 +56,7 @@ class Twin:
     camera: Camera
     sensor: Sensor = Sensor()
     outline: list | None = None
-    receiver: str = "three"  # or "gravity": two-LED windows, and the accelerometer's vertical
+    receiver: Receiver = PAPER  # its window rule, and the vertical it reads (planner.receivers)
     accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)
     video: VideoFormat | None = None  # frames read over several video frames (planner.twin.video)
 
@@ -68,22 +70,14 @@ class Twin:
                              "make it again with this vlp-plan")
         return cls(Site.from_plan(plan), chips, FrameFormat.from_plan(plan), camera or plan.camera_model(), sensor,
                    plan.outline,
-                   receiver=plan.receiver_mode, accelerometer_sigma_rad=math.radians(accelerometer_sigma_deg),
+                   receiver=receiver_for(plan.receiver_mode, "receiver.mode"),
+                   accelerometer_sigma_rad=math.radians(accelerometer_sigma_deg),
                    video=VideoFormat.from_plan(plan))
 
     @property
     def window_leds(self) -> int:
-        """LEDs the receiver's window needs: 2 with gravity, else 3."""
-        return 2 if self.receiver == "gravity" else 3
-
-
-def accelerometer(rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray:
-    """The phone's measured down direction in the camera frame: the true one turned by a random
-    angle, each of its two components Gaussian with ``sigma_rad / sqrt 2`` (RMS error ``sigma_rad``)."""
-    g = rotation.T @ np.array([0.0, 0.0, -1.0])
-    perp = np.linalg.svd(g[None])[2][1:]
-    out = g + rng.normal(0.0, sigma_rad / math.sqrt(2), 2) @ perp
-    return out / np.linalg.norm(out)
+        """LEDs the receiver's window needs."""
+        return self.receiver.leds
 
 
 @dataclass(frozen=True)
@@ -171,10 +165,11 @@ def grade(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg, bl
     if found < need:
         return PoseResult(**base, error_m=np.nan, stage="blobs", detail=f"{found} of {len(whole)} LEDs found")
     snap = snapshot(blobs, twin.camera)
-    if twin.receiver == "gravity":
-        if gravity is None:
-            gravity = accelerometer(rotation, twin.accelerometer_sigma_rad,
-                                    np.random.default_rng(np.frombuffer(np.asarray(position, float).tobytes(), np.uint32)))
+    if gravity is None:
+        gravity = twin.receiver.vertical(rotation, twin.accelerometer_sigma_rad,
+                                         np.random.default_rng(np.frombuffer(np.asarray(position, float).tobytes(),
+                                                                             np.uint32)))
+    if gravity is not None:
         snap = replace(snap, gravity=gravity, gravity_sigma_rad=twin.accelerometer_sigma_rad)
     if len(snap.ids) < need:
         problems = sorted({b.problem for b in blobs if b.id is None and b.problem})
@@ -203,14 +198,14 @@ def run_pose(twin: Twin, position: np.ndarray, rotation: np.ndarray, angles_deg,
                          position, rotation, twin.sensor, rng)
     blobs = decode_frame(frame.image, twin.camera, twin.modulation, blur_px=twin.sensor.blur_px,
                          exposure_s=twin.sensor.exposure_s)
-    gravity = accelerometer(rotation, twin.accelerometer_sigma_rad, rng) if twin.receiver == "gravity" else None
+    gravity = twin.receiver.vertical(rotation, twin.accelerometer_sigma_rad, rng)
     return grade(twin, position, rotation, angles_deg, blobs, tolerance_m, gravity), frame
 
 
 def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
     """``count`` poses, drawn as the verification draws them, where the plan is decodable."""
     from planner.layout.model import area_m2
-    from planner.verify.verify import DECODABLE, classify, observe_poses
+    from planner.verify.verify import DECODABLE
     from planner.verify.windows import sample_poses, working_area
 
     xyz = twin.site.xyz
@@ -218,15 +213,8 @@ def covered_poses(twin: Twin, count: int, seed: int = 0) -> Poses:
     per_m2 = 3.0 * count / max(area_m2(area), 1e-6)
     for _ in range(6):
         poses = sample_poses(area, twin.camera, per_m2, seed)
-        if twin.receiver == "gravity":
-            from planner.verify.pair_windows import classify_pairs, find_pairs
-
-            pp = find_pairs(poses, xyz, twin.site.radii, twin.camera)
-            status = classify_pairs(poses.position, pp, xyz, twin.site.ids, per_m2=per_m2, seed=seed,
-                                    tolerance_m=CONGRUENCE_TOLERANCE_M).status
-        else:
-            obs = observe_poses(poses, xyz, twin.site.radii, twin.camera, per_m2=per_m2, seed=seed)
-            status = classify(obs, twin.site.ids).status
+        status = twin.receiver.decodable(poses, xyz, twin.site.radii, twin.site.ids, twin.camera, per_m2=per_m2,
+                                         seed=seed)
         good = np.flatnonzero(status == DECODABLE)
         if len(good) >= count:
             pick = np.sort(np.random.default_rng(seed).choice(good, count, replace=False))
@@ -256,3 +244,35 @@ def summary(results: list[PoseResult]) -> dict:
         "error_m": ({"median": float(np.median(errors)), "p90": float(np.percentile(errors, 90)),
                      "max": float(errors.max())} if len(errors) else None),
     }
+
+
+def snapshot(blobs: list[Blob], camera: Camera) -> Snapshot:
+    """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first
+    (distorted ellipses and the distorting camera: positioning undistorts them, :meth:`Snapshot.ideal`)."""
+    read = [read_ellipse(blobs[k]) for k in read_blobs(blobs, camera)]
+    return Snapshot(camera, [led_id for led_id, _ in read], [ellipse for _, ellipse in read])
+
+
+def render_video(twin: Twin, video: VideoFormat, positions: list[np.ndarray], rotations: list[np.ndarray],
+                 rng: np.random.Generator) -> list[Frame]:
+    """The ``video.frames`` consecutive frames, the camera at ``positions[j]``, ``rotations[j]`` in frame ``j``."""
+    lengths = np.array([len(c) for c in twin.chips], float)
+    phase = rng.uniform(0.0, lengths) if len(lengths) else np.zeros(0)
+    spread = twin.sensor.led_spread
+    gain = 1.0 + rng.uniform(-spread, spread, len(lengths))
+    advance = video.period_s * twin.modulation.chip_rate_hz
+    site = twin.site
+    return [render_frame(site.xyz, site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera, positions[j],
+                         rotations[j], twin.sensor, rng, phase_chips=np.mod(phase + j * advance, lengths), gain=gain)
+            for j in range(video.frames)]
+
+
+def run_video_pose(twin: Twin, video: VideoFormat, position: np.ndarray, rotation: np.ndarray, angles_deg,
+                   rng: np.random.Generator, tolerance_m: float, shake_rad: float = 0.0) -> tuple[PoseResult, Frame]:
+    """Render ``video.frames`` frames of a pose (still, or turned by ``shake_rad`` per frame), read the IDs over
+    them, locate from frame 0, grade against frame 0's pose."""
+    rotations = shaken(rotation, video.frames, shake_rad, rng) if shake_rad > 0 else [rotation] * video.frames
+    frames = render_video(twin, video, [position] * video.frames, rotations, rng)
+    blobs = decode_video([f.image for f in frames], twin.camera, twin.modulation, video,
+                         blur_px=twin.sensor.blur_px, exposure_s=twin.sensor.exposure_s)
+    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frames[0]

@@ -3,7 +3,7 @@
 1. **Render** ``k`` frames a video period ``T_v = 1 / video_fps`` apart: every
    luminaire's drive runs on, so frame ``j`` starts at phase ``phase_0 + j T_v rate``;
    the brightness factors stay (the same LEDs).
-2. **Track**: each LED blob of frame 0 (found by :func:`planner.twin.receiver.decode_frame`)
+2. **Track**: each LED blob of frame 0 (found by :func:`planner.decode.image.decode_frame`)
    is followed to the nearest blob of every later frame, within its own minor
    semi-axis (neighbouring LEDs lie at least a diameter apart).
 3. **Stitch**: each row of a tracked blob gives the drive at a known time,
@@ -15,7 +15,7 @@
    in) is read there, at its centre, into cyclic position ``slot mod frame_chips``.
    A slot read in two frames must agree; a slot read in none leaves a gap.
 4. **ID**: the cyclic frame (one unknown rotation of the driver's) goes to
-   :func:`planner.frame.decode_stream`, which finds the preamble in it.
+   :func:`planner.modulation.frame.decode_stream`, which finds the preamble in it.
 
 The receiver knows the site's chip rate and frame length, its own video rate,
 row time and exposure, as an app set up for the site does. docs/twin.md.
@@ -30,15 +30,13 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
+from planner.decode.image import Blob, FrameFormat, chord_rows, decode_frame, row_levels
 from planner.errors import InputError
-from planner.frame import decode_stream
-from planner.twin.receiver import Blob, FrameFormat, _row_levels, chord_rows, decode_frame
-from planner.twin.render import Frame, render_frame
+from planner.modulation.frame import decode_stream
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
-    from planner.twin.twin import PoseResult, Twin
+    from planner.plan.file import PlanFile
 
 SLOT_INSET_CHIPS = 0.25
 """A chip slot is read in a frame if its centre lies this far inside the frame's first and last rows."""
@@ -68,20 +66,6 @@ class VideoFormat:
         return cls(mod.video_frames, mod.video_fps)
 
 
-def render_video(twin: Twin, video: VideoFormat, positions: list[np.ndarray], rotations: list[np.ndarray],
-                 rng: np.random.Generator) -> list[Frame]:
-    """The ``video.frames`` consecutive frames, the camera at ``positions[j]``, ``rotations[j]`` in frame ``j``."""
-    lengths = np.array([len(c) for c in twin.chips], float)
-    phase = rng.uniform(0.0, lengths) if len(lengths) else np.zeros(0)
-    spread = twin.sensor.led_spread
-    gain = 1.0 + rng.uniform(-spread, spread, len(lengths))
-    advance = video.period_s * twin.modulation.chip_rate_hz
-    site = twin.site
-    return [render_frame(site.xyz, site.radii, twin.chips, twin.modulation.chip_rate_hz, twin.camera, positions[j],
-                         rotations[j], twin.sensor, rng, phase_chips=np.mod(phase + j * advance, lengths), gain=gain)
-            for j in range(video.frames)]
-
-
 def row_signal(image: np.ndarray, blob: Blob, blur_px: float) -> tuple[np.ndarray, np.ndarray]:
     """Image rows (absolute) a blob's drive is read from, and their levels [DN], as the single-frame reader does."""
     assert blob.ellipse is not None
@@ -89,7 +73,7 @@ def row_signal(image: np.ndarray, blob: Blob, blur_px: float) -> tuple[np.ndarra
     pad, margin = 4, 1.0 + blur_px
     x0, y0 = max(0, x - pad), max(0, y - pad)
     roi = image[y0:min(image.shape[0], y + h + pad), x0:min(image.shape[1], x + w + pad)]
-    levels = _row_levels(roi, blob.ellipse, x0, y0, margin)
+    levels = row_levels(roi, blob.ellipse, x0, y0, margin)
     rows = y0 + chord_rows(roi.shape[0], blob.ellipse, y0, margin)
     ok = np.isfinite(levels)
     return rows[ok], levels[ok]
@@ -194,14 +178,3 @@ def shaken(rotation: np.ndarray, frames: int, shake_rad: float, rng: np.random.G
     return out
 
 
-def run_video_pose(twin: Twin, video: VideoFormat, position: np.ndarray, rotation: np.ndarray, angles_deg,
-                   rng: np.random.Generator, tolerance_m: float, shake_rad: float = 0.0) -> tuple[PoseResult, Frame]:
-    """Render ``video.frames`` frames of a pose (still, or turned by ``shake_rad`` per frame), read the IDs over
-    them, locate from frame 0, grade against frame 0's pose."""
-    from planner.twin.twin import grade
-
-    rotations = shaken(rotation, video.frames, shake_rad, rng) if shake_rad > 0 else [rotation] * video.frames
-    frames = render_video(twin, video, [position] * video.frames, rotations, rng)
-    blobs = decode_video([f.image for f in frames], twin.camera, twin.modulation, video,
-                         blur_px=twin.sensor.blur_px, exposure_s=twin.sensor.exposure_s)
-    return grade(twin, position, rotation, angles_deg, blobs, tolerance_m), frames[0]

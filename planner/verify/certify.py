@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.verify import certify_box as cb
 from planner.verify import certify_witness as cw
 from planner.verify.envelope import Envelope, envelope

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner import lens
-from planner.camera import Camera
+from planner.camera import lens
+from planner.camera.model import Camera
 from planner.errors import PlanningError
 from planner.verify.window_set import SAME_HEIGHT_M
 

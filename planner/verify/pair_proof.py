@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.verify.envelope import Envelope, NotProvable, ceiling_distances
 from planner.verify.pair_cells import case_b_pairs
 from planner.verify.proof import NEAR, PAIR_BUDGET, _near, _spindle_count  # the three-LED proof's spindle test
@@ -158,7 +158,7 @@ SURE_CAP_RAD = math.radians(75.0)
 def pair_envelope(camera: Camera, xyz: np.ndarray, radii: np.ndarray, install_tolerance_m: float,
                   area: np.ndarray | None) -> PairEnvelope:
     """The pair proof's envelope: the three-LED proof's where that exists, with the lens's angles from
-    :meth:`~planner.camera.Camera.rays` (edge middles and corners: a radial lens's extremes), the sure cone
+    :meth:`~planner.camera.model.Camera.rays` (edge middles and corners: a radial lens's extremes), the sure cone
     narrowed to :data:`SURE_CAP_RAD` less the tilt, and reach bounded by the site; :class:`NotProvable` else."""
     ceiling, near, far, r = ceiling_distances(camera, xyz, radii)
     w, h, cx, cy = float(camera.width_px), float(camera.height_px), camera.cx_px, camera.cy_px

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.camera import Camera, Poses
+from planner.camera.model import Camera, Poses
 from planner.verify.verify import AMBIGUOUS, DECODABLE, TOO_FEW, Verification, WindowSetCheck
 from planner.verify.windows import nearest_seen
 

@@ -43,9 +43,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.camera import Camera
-from planner.codes.rivals import shape_matches, triples_of_pairs
+from planner.camera.model import Camera
 from planner.verify.envelope import Envelope, NotProvable, envelope
+from planner.verify.rivals import shape_matches, triples_of_pairs
 from planner.verify.window_set import empty_triangles, may_be_decoded
 from planner.verify.windows import twice_signed_area
 
@@ -341,7 +341,7 @@ class Proof:
         return self.triangles is not None
 
     def shape_matches(self, tolerance_m: float) -> np.ndarray:
-        """The site's triples that can read like a proved window (:func:`planner.codes.rivals.shape_matches`),
+        """The site's triples that can read like a proved window (:func:`planner.verify.rivals.shape_matches`),
         found once per tolerance [m] however many schemes are judged against the proof."""
         assert self.triangles is not None and self.xyz is not None
         if tolerance_m not in self._matches:

@@ -5,7 +5,7 @@ each pose's window is found and read as the receiver reads it: IDs in
 counter-clockwise order plus the shape of the triangle. A pose is *covered* when
 it sees three non-collinear LEDs, and *ambiguous* when another set of luminaires
 anywhere on the site reads the same (PRODUCT.md, "What decodable means"): every
-physical triple is searched (:mod:`planner.codes.rivals`), not only the windows the
+physical triple is searched (:mod:`planner.verify.rivals`), not only the windows the
 sample produced. The statistics are those of a sample, and are labelled so; what
 is proved for every pose is the window-set check (:class:`WindowSetCheck`).
 """
@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera, Poses
-from planner.codes.rivals import find_rivals, longest_side, shape_matches, site_triples
+from planner.camera.model import Camera, Poses
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.verify.proof import Proof
+from planner.verify.rivals import find_rivals, longest_side, shape_matches, site_triples
 from planner.verify.window_set import window_superset
 from planner.verify.windows import (
     CONGRUENCE_TOLERANCE_M,

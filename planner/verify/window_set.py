@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planner.codes.rivals import site_triples
+from planner.verify.rivals import site_triples
 from planner.verify.windows import MIN_FLATNESS, twice_signed_area
 
 NEIGHBOURS = 32

@@ -18,7 +18,7 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 from scipy.stats import qmc
 
-from planner.camera import Camera, Poses, project_discs
+from planner.camera.model import Camera, Poses, project_discs
 from planner.defaults import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 from planner.layout.model import area_m2
 
@@ -153,7 +153,7 @@ def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
     ascending (-1 where fewer are seen), and how many LEDs are wholly seen (P,) among those examined.
 
     Through a distorting lens "wholly seen" is inside ``camera.view_px`` and "nearest" is by the ray
-    angle from the optical axis (ideal pixels from :func:`planner.camera.project_discs`; docs/verification.md).
+    angle from the optical axis (ideal pixels from :func:`planner.camera.model.project_discs`; docs/verification.md).
     """
     n = len(xyz)
     k = min(CANDIDATES, n)

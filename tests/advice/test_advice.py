@@ -51,9 +51,9 @@ def test_outline_room_advice_needs_two_changes_and_the_gravity_receiver_is_one()
     frame limits given: with the bundled drivers' it needs faster ones, tests/advice/test_advice_frames.py)."""
     import numpy as np
 
-    from planner.advice import RECEIVERS, Site, advise
-    from planner.camera import Camera
-    from planner.pipeline import read_layout
+    from planner.advice.advise import RECEIVERS, Site, advise
+    from planner.camera.model import Camera
+    from planner.layout.read import read_layout
 
     layout = read_layout(LAYOUTS / "outline-room.dxf", 128)
     site = Site(layout.xyz, np.array([lum.radius for lum in layout.luminaires]), layout.outline,

@@ -43,7 +43,7 @@ def test_a_change_whose_frames_do_not_fit_says_which_drivers_it_needs(advice):
     assert row["flags"][-2:] == ["--driver-max-hz", f"{f['needs_driver_hz']:.0f}"]
     rec = a["changes"][a["recommended"]]
     assert rec is not row and rec["reaches_goal"] and rec["frame"]["fits"]  # recommended: one that fits as it is
-    from planner.advice import table
+    from planner.advice.advise import table
 
     remark = next(r for c, _, r in table(a) if c == row["change"])
     assert f"need drivers at >= {f['needs_driver_hz'] / 1e3:g} kHz (these: 20 kHz)" in remark
@@ -68,9 +68,9 @@ def test_the_planner_agrees_the_frames_do_not_fit_without_the_drivers_and_do_wit
 
 def test_a_frame_that_fits_at_no_driver_rate_is_not_recommended():
     """LEDs imaged too small for any rate: the advice keeps the row, says why, and recommends none."""
-    from planner.advice import Site, advise, table
-    from planner.advice_frames import FrameLimits
-    from planner.camera import Camera
+    from planner.advice.advise import Site, advise, table
+    from planner.advice.frames import FrameLimits
+    from planner.camera.model import Camera
 
     xy = np.array([[x, y] for x in np.arange(0.0, 1.81, 0.6) for y in np.arange(0.0, 1.21, 0.6)])
     site = Site(np.column_stack([xy, np.full(len(xy), 2.8)]), np.full(len(xy), 0.005), None, Camera())

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from planner.calibration.chessboard import Board
-from planner.camera import Camera
+from planner.camera.model import Camera
 
 
 def board_pose(tilt_deg: float, tilt_dir_deg: float, spin_deg: float, centre_m, distance_m: float):

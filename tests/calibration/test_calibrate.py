@@ -13,8 +13,8 @@ import yaml
 from boards import POSES, board_pose, charuco_texture, pixel_rays, render_board
 
 from planner.calibration.chessboard import Board
-from planner.camera import Camera, rotation_from_angles
-from planner.camera_file import read_camera
+from planner.camera.file import read_camera
+from planner.camera.model import Camera, rotation_from_angles
 from planner.twin.render import Sensor, render_frame
 
 BOARD = Board(9, 6, 0.025)

@@ -52,7 +52,7 @@ def test_help_returns_within_half_a_second_of_a_bare_python(command):
 
 def test_the_parsers_offer_exactly_what_the_stages_hold():
     from planner import defaults
-    from planner.frame import LINE_CODES
+    from planner.modulation.frame import LINE_CODES
     from planner.positioning.locate import METHODS
 
     assert set(defaults.LINE_CODE_NAMES) == set(LINE_CODES)

@@ -26,11 +26,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy
-from planner.camera_file import read_camera
+from planner.camera.file import read_camera
 from planner.cli import plan
 from planner.errors import PlannerError
-from planner.pipeline import read_layout
-from planner.plan_file import load_plan
+from planner.layout.read import read_layout
+from planner.plan.file import load_plan
 from planner.positioning.snapshot_file import read_snapshot
 
 TIME_BOUND_S = 20.0

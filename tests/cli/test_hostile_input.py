@@ -24,7 +24,7 @@ import yaml
 
 from conftest import ROOT, grid_xy
 from planner.cli import flash, locate, plan, report, twin, verify
-from planner.plan import plan_hash
+from planner.plan.model import plan_hash
 
 KEY = bytes(range(32))
 FAST = ["--scheme", "unique", "--no-verify", "--no-report", "--no-map", "--no-firmware"]

@@ -11,7 +11,7 @@ from conftest import ROOT
 
 GRID = str(ROOT / "layouts" / "grid-32.yaml")
 TIMING = re.compile(r"^vlp-plan: timing +(\d+\.\d\d) s  (.+)$")
-STAGES = ["reading", "pose sampling", "IDs (three-LED receiver)", "window-set check", "frames", "error map",
+STAGES = ["reading", "pose sampling", "IDs and verification", "frames", "error map",
           "advice", "plan.yaml", "firmware", "annotated drawing", "maps", "site report", "total"]
 
 

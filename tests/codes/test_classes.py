@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from conftest import grid_xy, hex_xy
 from planner.codes.classes import ClassIndex, clique_lower_bound, shape_groups
 from planner.codes.pairwise import alike_pairs, search
-from planner.codes.rivals import find_rivals, site_triples
+from planner.verify.rivals import find_rivals, site_triples
 
 TOL = 0.05
 

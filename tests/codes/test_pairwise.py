@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from conftest import grid_xy
 from planner.codes.pairwise import Index, alike_pairs, conflicts, search
-from planner.codes.rivals import find_rivals, site_triples
+from planner.verify.rivals import find_rivals, site_triples
 
 TOL = 0.05
 

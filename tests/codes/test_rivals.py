@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import grid_xy
-from planner.codes.rivals import find_rivals, shape_matches, site_triples
+from planner.verify.rivals import find_rivals, shape_matches, site_triples
 
 
 def ccw(t, xy):

@@ -31,7 +31,7 @@ from planner.firmware.image import (
     parse_config_image,
 )
 from planner.firmware.render import chip_timer, default_template_dir, file_name, render_firmware, write_firmware
-from planner.plan_file import PlanFile
+from planner.plan.file import PlanFile
 
 HERE = ROOT / "tests"
 HARNESS = HERE / "harness"
@@ -40,7 +40,7 @@ GCC = shutil.which("gcc")
 CFLAGS = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
 HASH = "0123456789abcdef"
 
-# Frames built here, independent of planner.frame: preamble + line-coded word.
+# Frames built here, independent of planner.modulation.frame: preamble + line-coded word.
 FOUR_B_SIX_B = ("001110", "001101", "010011", "010110", "010101", "100011", "100110", "100101",
                 "011001", "011010", "011100", "110001", "110010", "101001", "101010", "101100")
 
@@ -319,8 +319,8 @@ def test_packaging_lists_every_subpackage():
 def test_vlp_plan_writes_headers_that_play_the_plans_frames(tmp_path):
     """End to end: the real planner's frames, through the bundled templates, compiled and played."""
     from planner.cli.plan import main as plan_main
-    from planner.plan import plan_hash
-    from planner.plan_file import load_plan
+    from planner.plan.file import load_plan
+    from planner.plan.model import plan_hash
 
     out = tmp_path / "g32"
     plan_main([str(HERE.parent / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-map", "--json",

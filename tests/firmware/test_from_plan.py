@@ -20,8 +20,8 @@ import yaml
 
 from conftest import ROOT
 from planner.firmware.image import parse_config_image
-from planner.firmware.rebuild import codec, verify_plan_file
-from planner.plan_file import load_plan, plan_from_document
+from planner.plan.file import load_plan, plan_from_document
+from planner.plan.rebuild import codec, verify_plan_file
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 BIN = Path(sys.executable).parent  # the installed console scripts
@@ -188,8 +188,8 @@ def test_frames_made_from_ids_send_those_ids_and_a_swap_is_named(line, distance)
     """In process, over every ID of a 4-bit code: with and without check bits, both line codes."""
     from conftest import minimal_plan
     from planner.codes.check_bits import check_code
-    from planner.firmware.rebuild import Codec, derived_frame, frame_mismatches
-    from planner.frame import line_code
+    from planner.modulation.frame import line_code
+    from planner.plan.rebuild import Codec, derived_frame, frame_mismatches
 
     check = check_code(16, 4, distance)
     code = line_code(line)

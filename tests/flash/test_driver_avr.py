@@ -23,6 +23,7 @@ import pytest
 import serial
 
 from conftest import ROOT
+from planner.decode.image import FrameFormat
 from planner.errors import InputError
 from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image
 from planner.flash.avr.build import (
@@ -50,8 +51,7 @@ from planner.flash.wire import (
     decode,
     encode,
 )
-from planner.plan_file import load_plan
-from planner.twin.receiver import FrameFormat
+from planner.plan.file import load_plan
 
 pytestmark = pytest.mark.needs_avr
 

@@ -12,7 +12,7 @@ from planner.errors import InputError
 from planner.layout.dxf import read_dxf
 from planner.layout.dxf_annotate import APPID, ID_LAYER, LUM_LAYER, label, write_annotated_dxf
 from planner.layout.model import Layout, Luminaire
-from planner.plan_file import Entry
+from planner.plan.file import Entry
 
 
 def _entries(layout: Layout) -> list[Entry]:

@@ -17,7 +17,7 @@ import dxf_factory as factory
 from planner.layout.dxf import read_dxf, scan_dxf
 from planner.layout.dxf_names import name_class
 from planner.layout.model import area_m2
-from planner.pipeline import read_layout
+from planner.layout.read import read_layout
 
 ROOM_MM = (14_400.0, 9_600.0)
 """The house's outer wall face [mm]: 138.24 m2."""

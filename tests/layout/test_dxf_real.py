@@ -21,7 +21,7 @@ from planner.errors import InputError
 from planner.layout.dxf import read_dxf
 from planner.layout.dxf_names import LIGHT_WORDS, LUMINAIRE, NEUTRAL, name_class, words
 from planner.layout.model import area_m2
-from planner.pipeline import ReadOptions, read_layout
+from planner.layout.read import ReadOptions, read_layout
 
 
 def _save(tmp_path, doc, name="site.dxf"):

@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose
 from planner.errors import InputError, UsageError
 from planner.layout.ifc import read_ifc
 from planner.layout.model import area_m2
-from planner.pipeline import ReadOptions, read_layout
+from planner.layout.read import ReadOptions, read_layout
 
 
 @pytest.fixture

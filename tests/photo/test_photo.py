@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from planner.camera import rotation_from_angles
+from planner.camera.model import rotation_from_angles
 from planner.cli.locate import console_main as locate_main
-from planner.frame import frame_chips, line_code
+from planner.modulation.frame import frame_chips, line_code
 from planner.photo.decode import chips_from_runs, inner_runs, stripe_period_rows
 from planner.photo.read import ceiling, linear_luminance, srgb_to_linear
-from planner.plan_file import load_plan
+from planner.plan.file import load_plan
 from planner.positioning.observation import seen_leds
 from planner.twin.render import Sensor, exposure_means, render_frame
 from planner.twin.twin import Twin

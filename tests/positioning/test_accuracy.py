@@ -7,7 +7,7 @@ import pytest
 from conftest import ROOT
 from planner.cli.accuracy import console_main
 from planner.cli.plan import main as plan_main
-from planner.plan_file import load_plan
+from planner.plan.file import load_plan
 from planner.positioning.accuracy import PAPER_LEDS_M, paper_experiment, paper_test_points, stats_cm
 
 

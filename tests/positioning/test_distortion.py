@@ -14,14 +14,14 @@ import pytest
 import yaml
 
 from conftest import ROOT, STRONG_WIDE_CAMERA
-from planner.camera import Camera, disc_image_rows, project_discs_at, rotation_from_angles
-from planner.camera_file import camera_profile
+from planner.camera.ellipse import Ellipse
+from planner.camera.file import camera_profile
+from planner.camera.model import Camera, disc_image_rows, project_discs_at, rotation_from_angles
 from planner.cli.locate import console_main as locate_main
 from planner.cli.plan import console_main as plan_main
 from planner.cli.verify import console_main as verify_main
-from planner.ellipse import Ellipse
 from planner.errors import PositioningError
-from planner.plan_file import load_plan
+from planner.plan.file import load_plan
 from planner.positioning.locate import Site, Snapshot
 from planner.positioning.observation import observe, rim_points
 from planner.positioning.snapshot_file import snapshot_document

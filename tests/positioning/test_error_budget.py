@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
-from planner.camera import Camera, rotation_from_angles
+from planner.camera.model import Camera, rotation_from_angles
 from planner.cli.accuracy import console_main as accuracy_main
 from planner.cli.report import main as report_main
-from planner.plan import dump_plan
-from planner.plan_file import load_plan
+from planner.plan.file import load_plan
+from planner.plan.model import dump_plan
 from planner.positioning.accuracy import paper_experiment, site_accuracy, stats_cm
 from planner.positioning.error_terms import (
     DEFAULT_TERMS,

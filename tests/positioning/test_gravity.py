@@ -7,7 +7,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from planner.camera import Camera, rotation_from_angles
+from planner.camera.model import Camera, rotation_from_angles
 from planner.positioning.gravity import locate_gravity, two_point_pose
 from planner.positioning.observation import observe
 

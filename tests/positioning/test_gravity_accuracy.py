@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from conftest import ROOT
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.positioning.accuracy import site_errors
 from planner.positioning.error_terms import DEFAULT_TERMS, NO_TERMS, TERMS, ErrorTerms
 from planner.verify.windows import sample_poses, working_area
@@ -113,7 +113,8 @@ def test_the_gravity_plans_report_says_what_the_error_figures_include(plans):
 def test_the_gravity_plans_error_map_keeps_its_longer_title_inside_the_canvas(tmp_path):
     import matplotlib
 
-    from planner.pipeline import PlanOptions, make_plan, read_layout
+    from planner.layout.read import read_layout
+    from planner.plan.pipeline import PlanOptions, make_plan
     from planner.plot_style import RC
     from planner.report.maps import error_figure
     from report.test_maps_text import _check  # the report figures' text-box check

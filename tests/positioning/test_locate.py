@@ -5,11 +5,11 @@ import json
 import numpy as np
 import pytest
 
-from planner.camera import Camera, rotation_from_angles
+from planner.camera.ellipse import Ellipse
+from planner.camera.model import Camera, rotation_from_angles
 from planner.cli.locate import console_main
-from planner.ellipse import Ellipse
 from planner.errors import InputError, PositioningError
-from planner.plan_file import load_plan
+from planner.plan.file import load_plan
 from planner.positioning.locate import Site, Snapshot, identify, locate
 from planner.positioning.observation import observe
 from planner.positioning.snapshot_file import parse_snapshot

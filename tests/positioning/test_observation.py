@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from planner.camera import Camera, disc_dual_conic, project_discs_at, rotation_from_angles
-from planner.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
+from planner.camera.ellipse import Ellipse, centre_and_shape, ellipse_from_dual_conic, fit_ellipse
+from planner.camera.model import Camera, disc_dual_conic, project_discs_at, rotation_from_angles
 from planner.errors import PositioningError
 from planner.positioning.fix import angles_of
 from planner.positioning.observation import observe, rim_points

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from planner.camera import Camera, disc_dual_conic, rotation_from_angles
-from planner.ellipse import ellipse_from_dual_conic
+from planner.camera.ellipse import ellipse_from_dual_conic
+from planner.camera.model import Camera, disc_dual_conic, rotation_from_angles
 from planner.errors import PositioningError
 from planner.positioning.paper import (
     distance_weak_perspective,

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from planner.pipeline import PlanOptions, make_plan, read_layout
+from planner.layout.read import read_layout
+from planner.plan.pipeline import PlanOptions, make_plan
 from planner.plot_style import RC
 from planner.report.maps import coverage_figure, map_figure
 
@@ -91,8 +92,8 @@ def test_window_scheme_draws_no_odd_even_classes(plans):
 
 def test_report_figures_keep_their_text_inside(plans):
     """The error map, the frame timing and the walking route of the site report."""
-    from planner.plan import plan_document
-    from planner.plan_file import plan_from_document
+    from planner.plan.file import plan_from_document
+    from planner.plan.model import plan_document
     from planner.report.content import walking_order
     from planner.report.figures import route_fig, timing_examples, timing_figure
     from planner.report.maps import error_figure

@@ -55,7 +55,8 @@ def test_error_map_of_enough_poses_hatches_nothing():
 def test_error_map_squares_hold_enough_sampled_poses():
     """The squares site_accuracy chooses hold ERROR_CELL_POSES sampled poses on average (were about 8)."""
     from conftest import ROOT
-    from planner.pipeline import PlanOptions, make_plan, read_layout
+    from planner.layout.read import read_layout
+    from planner.plan.pipeline import PlanOptions, make_plan
 
     p = make_plan(read_layout(ROOT / "layouts" / "grid-32.yaml", None), PlanOptions(error_poses_per_m2=4.0))
     assert p.accuracy is not None

@@ -8,7 +8,7 @@ from conftest import ROOT
 from planner.cli.efficiency import console_main
 from planner.cli.plan import main as plan_main
 from planner.defaults import PAPER_LAYOUTS
-from planner.pipeline import read_layout
+from planner.layout.read import read_layout
 from planner.studies.efficiency import curve, efficiency, lattice_layout, paper_grid, table_row
 
 SMALL = ["--sizes", "16,64,256", "--window-up-to", "64"]

@@ -13,11 +13,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.camera import rotation_from_angles
+from planner.camera.model import rotation_from_angles
 from planner.cli.twin import console_main
-from planner.frame import frame_chips, line_code
-from planner.plan_file import load_plan
-from planner.twin.receiver import FrameFormat, chips_from_levels, decode_frame
+from planner.decode.image import FrameFormat, chips_from_levels, decode_frame
+from planner.modulation.frame import frame_chips, line_code
+from planner.plan.file import load_plan
 from planner.twin.render import Sensor, exposure_means, render_frame
 from planner.twin.twin import Twin, covered_poses, summary
 
@@ -54,7 +54,7 @@ def test_chips_from_levels_reads_runs_and_drops_partial_ends():
 
 def _single_led_frame(word, code_name, exposure_s=25e-6, seed=0, height_m=1.0):
     """One LED straight above a level camera, sending ``word``."""
-    from planner.camera import Camera
+    from planner.camera.model import Camera
 
     code = line_code(code_name)
     chips = frame_chips(word, 4, code)
@@ -79,7 +79,7 @@ def test_one_led_renders_and_decodes_to_its_id(word, code_name):
 
 
 def test_a_dark_frame_has_no_blobs_and_a_cut_led_is_refused(plan512):
-    from planner.camera import Camera
+    from planner.camera.model import Camera
 
     camera = Camera()
     dark = np.full((camera.height_px, camera.width_px), 6, np.uint8)

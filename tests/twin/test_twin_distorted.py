@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from conftest import STRONG_WIDE_CAMERA
-from planner.camera import Camera, rotation_from_angles
+from planner.camera.model import Camera, rotation_from_angles
 from planner.cli.twin import console_main
-from planner.plan_file import load_plan
+from planner.plan.file import load_plan
 from planner.twin.render import Sensor, render_frame
 from planner.twin.twin import Twin, covered_poses, summary
 
@@ -67,7 +67,7 @@ def test_an_led_the_lens_maps_far_off_the_sensor_is_skipped_without_an_overflow(
     # cast to int past int64 (numpy's "invalid value encountered in cast"); it is off the sensor, not drawn
     import warnings
 
-    from planner.camera_file import camera_profile
+    from planner.camera.file import camera_profile
 
     camera = camera_profile("ultrawide")
     xyz = np.array([[10.0, 0.0, 1.001], [0.0, 0.0, 3.0]])

@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from conftest import ROOT
-from planner.frame import frame_chips, line_code
-from planner.plan_file import load_plan
+from planner.modulation.frame import frame_chips, line_code
+from planner.plan.file import load_plan
 from planner.twin.twin import Twin, covered_poses, run_pose
 from planner.twin.video import stitch
 

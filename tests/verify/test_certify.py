@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import exact_nearest, grid_xy, poisson_xy
-from planner.camera import Camera, Poses
+from planner.camera.model import Camera, Poses
 from planner.verify import certify as ce
 from planner.verify import certify_box as cb
 from planner.verify import certify_witness as cw

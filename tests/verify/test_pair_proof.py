@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, exact_nearest, grid_xy
-from planner.camera import Camera
-from planner.pipeline import read_layout
+from planner.camera.model import Camera
+from planner.layout.read import read_layout
 from planner.verify import pair_cells as pc
 from planner.verify.pair_proof import pair_envelope, possible_window_pairs, prove_pair_set
 from planner.verify.proof import _hull_depth
@@ -110,7 +110,7 @@ def test_every_exact_two_led_window_of_an_installed_site_is_in_the_proved_set(ji
 @pytest.mark.parametrize("seed, mixed, camera", [(1, False, "paper"), (5, True, "paper"), (8, False, "wide")])
 def test_random_installed_sites_have_every_exact_window_in_the_proved_set(seed, mixed, camera):
     """Rotated, stretched, jittered lattices with gaps (pitch 0.35-1.2 m), discs of two sizes, a distorting lens."""
-    from planner.camera_file import camera_profile
+    from planner.camera.file import camera_profile
 
     cam = Camera() if camera == "paper" else camera_profile(camera)
     rng = np.random.default_rng(100 + seed)
@@ -147,7 +147,7 @@ def test_over_the_pair_budget_is_refused():
 
 def _dense_windows_inside(layout_name, cam, per_m2):
     from conftest import ROOT
-    from planner.pipeline import read_layout
+    from planner.layout.read import read_layout
     from planner.verify.pair_windows import find_pairs
 
     lay = read_layout(ROOT / "layouts" / layout_name, None)
@@ -188,7 +188,7 @@ def test_grid_512_two_led_windows_of_a_dense_sample_lie_in_the_proved_set_and_it
 
 @pytest.mark.slow
 def test_grid_256_and_the_office_two_led_windows_lie_in_the_proved_set():
-    from planner.camera_file import camera_profile
+    from planner.camera.file import camera_profile
 
     _dense_windows_inside("grid-256.yaml", Camera(), 2000)
     _dense_windows_inside("dialux-office.dxf", camera_profile("wide"), 2000)

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.codes.pair_code import PairIndex, assign_pairs
 from planner.graph import build_graph
-from planner.pipeline import read_layout
+from planner.layout.read import read_layout
 from planner.verify.pair_proof import prove_pair_set
 from planner.verify.pair_windows import find_pairs, pair_rivals
 from planner.verify.windows import sample_poses, working_area
@@ -64,8 +64,8 @@ def test_pairs_of_different_lengths_reuse_labels():
 def test_ultrawide_office_two_led_plan_is_proved_past_the_horizon():
     """Issue 19, Done-when 1 (in part): the listed ultra-wide profile's tilt plus corner angle passes
     the horizon, where the three-LED proof stops; the pair proof's envelope bounds reach by the site."""
-    from planner.camera_file import camera_profile
-    from planner.receivers import plan_gravity
+    from planner.camera.file import camera_profile
+    from planner.receivers.gravity import plan_gravity
     from planner.verify.windows import PoseSample
 
     lay = read_layout(ROOT / "layouts" / "dialux-office.dxf", None)

@@ -11,12 +11,12 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import ROOT, grid_xy
-from planner.camera import Camera, Poses, project_discs, rotation_from_angles
-from planner.codes.rivals import find_rivals
+from planner.camera.model import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.schemes import assign_window
 from planner.codes.window import window_keys
 from planner.graph import build_graph
 from planner.verify.proof import prove_window_set
+from planner.verify.rivals import find_rivals
 from planner.verify.verify import AMBIGUOUS, DECODABLE, verify_plan
 from planner.verify.windows import PoseSample, canonical_windows, find_windows, sample_poses, working_area
 

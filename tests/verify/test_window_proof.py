@@ -7,7 +7,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import exact_nearest, grid_xy, hex_xy, poisson_xy
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.verify import proof as wp
 from planner.verify.envelope import Envelope, envelope
 from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area

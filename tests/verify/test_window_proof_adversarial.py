@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import exact_nearest, grid_xy, hex_xy, jittered_xy
-from planner.camera import Camera, Poses, project_discs
+from planner.camera.model import Camera, Poses, project_discs
 from planner.verify import proof as wp
 from planner.verify.envelope import envelope
 from planner.verify.windows import MIN_FLATNESS, flatness

@@ -6,10 +6,11 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import ROOT, grid_xy, hex_xy, jittered_xy, poisson_xy
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.layout.model import Layout, Luminaire, area_m2
-from planner.pipeline import PlanOptions, make_plan, read_layout
-from planner.plan_file import load_plan
+from planner.layout.read import read_layout
+from planner.plan.file import load_plan
+from planner.plan.pipeline import PlanOptions, make_plan
 from planner.verify.envelope import envelope
 from planner.verify.verify import AMBIGUOUS, classify, observe_site
 from planner.verify.window_set import empty_triangles, window_superset

@@ -18,11 +18,12 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from planner.defaults import MCU_CLOCK_HZ as DEFAULT_MCU_CLOCK_HZ
 from planner.errors import UsageError
 from planner.firmware.render import default_template_dir
 
 MCU = "atmega328p"
-MCU_CLOCK_HZ = 16_000_000
+MCU_CLOCK_HZ = int(DEFAULT_MCU_CLOCK_HZ)  # the reference driver's ATmega328P
 FLASH_BYTES, RAM_BYTES, EEPROM_BYTES = 32 * 1024, 2 * 1024, 1024
 FIRMWARE_SOURCES = ("main.c", "protocol.c", "codec.c", "sha256.c")
 FIRMWARE_HEADERS = ("driver.h", "codec.h", "sha256.h")

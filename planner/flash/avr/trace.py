@@ -4,7 +4,7 @@ The trace's edges fall on whole chips, so every interval between edges is a whol
 chip periods: the chip period is measured as the span of the edges divided by the number of
 chips in it (each interval rounded to whole chips at the shortest interval's scale); the
 levels between edges, sampled once per measured period, are the chip stream, which the
-receiver's own frame decoder (:func:`planner.frame.decode_stream`) reads.
+receiver's own frame decoder (:func:`planner.modulation.frame.decode_stream`) reads.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.decode.image import FrameFormat
 from planner.errors import InputError
-from planner.frame import decode_stream
-from planner.twin.receiver import FrameFormat
+from planner.modulation.frame import decode_stream
 
 _UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "ps": 1e-12, "fs": 1e-15}
 JITTER_SHARE = 0.2

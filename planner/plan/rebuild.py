@@ -11,20 +11,17 @@ re-derives every frame, re-verifies and writes ``plan.yaml`` and ``firmware/`` a
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.codes.check_bits import CheckCode, check_code
-from planner.defaults import INSTALL_TOLERANCE_M
-from planner.errors import InputError, UsageError
-from planner.frame import LineCode, decode_stream, frame_chips, line_code
-from planner.plan_file import Entry, PlanFile
+from planner.defaults import INSTALL_TOLERANCE_M, MCU_CLOCK_HZ
+from planner.errors import InputError
+from planner.modulation.frame import LineCode, decode_stream, frame_chips, line_code
+from planner.plan.file import Entry, PlanFile
 
 
 @dataclass(frozen=True)
@@ -113,32 +110,18 @@ def verify_plan_file(plan: PlanFile, camera: Camera, *, poses_per_m2: float, see
                      install_tolerance_m: float | None = None):
     """Verify a plan's IDs anew (sampled poses; the window set, proved where the proof completes): ``(result,
     standing)`` where ``standing`` holds what :func:`planner.advice.verdict` reads."""
-    from planner.advice import standing
+    from planner.advice.advise import standing
     from planner.defaults import COVERAGE_GOAL
+    from planner.receivers.modes import receiver_for
     from planner.verify.verify import AMBIGUOUS, TOO_FEW
 
     xyz, radii, ids = plan.xyz, plan.radii, plan.ids
     recorded = (plan.verification.window_set if plan.verification else None) or {}
     install = install_tolerance_m if install_tolerance_m is not None else \
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
-    if plan.receiver_mode == "gravity":  # two-LED windows (planner.receivers)
-        from planner.receivers import verify_gravity
-
-        result = verify_gravity(xyz, radii, ids, plan.outline, camera, per_m2=poses_per_m2, seed=seed,
-                                tolerance_m=tolerance_m, install_tolerance_m=install)
-    else:
-        from planner.verify.proof import prove_window_set
-        from planner.verify.verify import check_window_set, side_bound, verify_plan
-
-        result = verify_plan(xyz, radii, ids, plan.outline, camera, per_m2=poses_per_m2, seed=seed,
-                             tolerance_m=tolerance_m)
-        # The proof is made anew from the luminaires and the camera, never read from the plan; without
-        # one, only the sampled side bound may come from the plan.
-        proof = prove_window_set(xyz, radii, camera, install)
-        bound = max(side_bound(result.windows, xyz, tolerance_m), float(recorded.get("max_side_m", 0.0))
-                    if recorded.get("max_side_from") != "proof" else 0.0)
-        result = replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=tolerance_m,
-                                                             install_tolerance_m=install, proof=proof))
+    mode = receiver_for(plan.receiver_mode, "receiver.mode")  # its windows and proof (planner.receivers)
+    result = mode.verify(xyz, radii, ids, plan.outline, camera, per_m2=poses_per_m2, seed=seed,
+                         tolerance_m=tolerance_m, install_tolerance_m=install, recorded=recorded)
     n = max(result.poses, 1)
     judged = standing(result.coverage, result.count(TOO_FEW) / n, result.count(AMBIGUOUS) / n,
                       plan.advice.goal if plan.advice is not None else COVERAGE_GOAL, plan.receiver_mode)
@@ -147,16 +130,17 @@ def verify_plan_file(plan: PlanFile, camera: Camera, *, poses_per_m2: float, see
 
 def rebuild(path: str | Path, outdir: str | Path | None, *, allow_unverified: bool = False,
             poses_per_m2: float, seed: int = 0, tolerance_m: float, template_dir: Path | None = None,
-            mcu_clock_hz: float = 16e6, image_version: int = 1) -> dict:
+            mcu_clock_hz: float = MCU_CLOCK_HZ, image_version: int = 1) -> dict:
     """``vlp-plan --from-plan PATH``: every frame made again from its ``id``, the IDs verified, and ``plan.yaml``
     and ``firmware/`` written into ``outdir`` (default: the plan's folder), atomically. A plan that fails
     verification (IDs that read alike, or NOT USABLE) is refused unless ``allow_unverified``. Returns the summary."""
     from planner import __version__
     from planner._files import load_yaml
-    from planner.advice import verdict
+    from planner.advice.advise import verdict
     from planner.firmware.render import write_firmware
-    from planner.plan import dump_plan, plan_hash
-    from planner.plan_file import plan_from_document
+    from planner.plan.file import plan_from_document
+    from planner.plan.model import dump_plan, plan_hash
+    from planner.plan.pipeline import staged_output
 
     path = Path(path)
     where = str(path)
@@ -188,9 +172,10 @@ def rebuild(path: str | Path, outdir: str | Path | None, *, allow_unverified: bo
     text = dump_plan(doc)
     written = plan_from_document(doc, where)
     out = Path(outdir) if outdir is not None else path.parent
-    _write(out, lambda stage: ((stage / "plan.yaml").write_text(text, encoding="utf-8"),
-                               write_firmware(written, plan_hash(text), stage, template_dir=template_dir,
-                                              mcu_clock_hz=mcu_clock_hz, image_version=image_version)))
+    with staged_output(out, "which a new plan would orphan; write the rebuilt plan into another -o") as stage:
+        (stage / "plan.yaml").write_text(text, encoding="utf-8")
+        write_firmware(written, plan_hash(text), stage, template_dir=template_dir, mcu_clock_hz=mcu_clock_hz,
+                       image_version=image_version)
     return {"plan": str(out / "plan.yaml"), "luminaires": len(names), "frames_made_again": changed,
             "verified": bool(passed), "verdict": said, "coverage": round(float(result.coverage), 6),
             "plan_hash": plan_hash(text)}
@@ -205,30 +190,3 @@ def failed_verdict(result) -> str:
     what += [f"{alike} window(s) read like another"] if alike else []
     return "FAILED: the IDs do not name one place (" + ", ".join(what) + "); fix the ids the conflicts name"
 
-
-def _write(outdir: Path, fill) -> None:
-    """Fill a staging folder beside ``outdir`` and swap it into place; ``outdir`` must be new, empty or a
-    vlp-plan output folder without an as-built journal (flashing a new plan needs a new journal)."""
-    if outdir.exists() and not (outdir.is_dir() and (not any(outdir.iterdir()) or (outdir / "plan.yaml").exists())):
-        raise UsageError(f"{outdir}: exists and is not a vlp-plan output directory; choose another -o")
-    if (outdir / "as-built.json").exists():
-        raise UsageError(f"{outdir}: holds as-built.json, the record of drivers flashed with the plan there; "
-                         "write the rebuilt plan into another -o")
-    try:
-        outdir.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
-    except OSError as exc:
-        raise UsageError(f"-o {outdir}: cannot write there ({exc.strerror}); choose another -o") from None
-    try:
-        stage.chmod(0o755)
-        fill(stage)
-        if outdir.exists():
-            old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")
-            os.replace(outdir, old)
-            os.replace(stage, outdir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(stage, outdir)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise

@@ -1,4 +1,4 @@
-"""Candidate changes of a site for the advice (:mod:`planner.advice`): the site, its coverage measure per receiver
+"""Candidate changes of a site for the advice (:mod:`planner.advice.advise`): the site, its coverage measure per receiver
 mode, and the changes an integrator can make, knob by knob (receiver mode, camera profile, mounting height,
 density), each list from the least to the most change. ``docs/advice.md``.
 """
@@ -9,13 +9,16 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera.model import Camera
 from planner.layout.model import area_m2, fill_outline
-from planner.verify.pair_windows import find_pairs
-from planner.verify.windows import find_windows, sample_poses, working_area
+from planner.receivers.base import Receiver
+from planner.receivers.modes import RECEIVERS as MODES
+from planner.receivers.modes import receiver_for
+from planner.verify.windows import working_area
 
 DENSER_MAX_LUMINAIRES = 20000
 """Denser layouts are tried up to this many luminaires."""
@@ -40,23 +43,15 @@ class Site:
     filled: bool = False  # the luminaires were laid out by ``--leds N`` in an outline-only drawing
 
 
-def window_coverage(site: Site, per_m2: float, seed: int) -> float:
-    """Share of sampled poses that see three whole, non-collinear LEDs (the three-LED receiver)."""
-    poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
-    return float(find_windows(poses, site.xyz, site.radii, site.camera).covered.mean())
+def _coverage(mode: Receiver, site: Site, per_m2: float, seed: int) -> float:
+    return mode.coverage(site.xyz, site.radii, site.outline, site.camera, per_m2, seed)
 
 
-def pair_coverage(site: Site, per_m2: float, seed: int) -> float:
-    """Share of sampled poses that see two whole LEDs (the gravity receiver's window, ``planner.receivers``)."""
-    poses = sample_poses(working_area(site.xyz[:, :2], site.outline), site.camera, per_m2, seed)
-    return float(find_pairs(poses, site.xyz, site.radii, site.camera).covered.mean())
-
-
-WINDOW_WORDS = {"three": "three whole, non-collinear LEDs", "gravity": "two whole LEDs (with gravity)"}
+WINDOW_WORDS = {name: mode.window_words for name, mode in MODES.items()}
 """What a pose must see to decode, per receiver mode, as the summary and the report say it."""
 
-RECEIVERS: dict[str, Callable[[Site, float, int], float]] = {"three": window_coverage, "gravity": pair_coverage}
-"""Coverage measure per receiver mode (``--receiver``); a mode registered here becomes a candidate change."""
+RECEIVERS: dict[str, Callable[[Site, float, int], float]] = {name: partial(_coverage, mode) for name, mode in MODES.items()}
+"""Coverage measure per receiver mode (``--receiver``, :mod:`planner.receivers.modes`): each mode is a candidate change."""
 
 
 @dataclass(frozen=True)
@@ -73,7 +68,7 @@ class Change:
 def _camera_changes(site: Site) -> list[Change]:
     """The bundled phone profiles (``--camera NAME``) wider than the site's camera, held as the site's camera is
     (receiver heights, tilt)."""
-    from planner.camera_file import camera_profiles
+    from planner.camera.file import camera_profiles
 
     now = math.degrees(site.camera.hfov_rad)
     held = {k: getattr(site.camera, k) for k in ("min_height_m", "max_height_m", "max_tilt_rad")}
@@ -132,7 +127,7 @@ def _receiver_changes(site: Site) -> list[Change]:
         return lambda s: dataclasses.replace(s, receiver=mode)
 
     return [Change("receiver", f"receiver mode {mode}", ("--receiver", mode), with_mode(mode))
-            for mode in RECEIVERS if mode != site.receiver]
+            for mode in RECEIVERS if MODES[mode] is not receiver_for(site.receiver)]
 
 
 KNOBS = (_receiver_changes, _camera_changes, _height_changes, _density_changes)

@@ -2,7 +2,7 @@
 
 :func:`load_plan` checks every field a later stage reads (types, finite numbers, ranges,
 unique names, IDs within the code) and returns a :class:`PlanFile`; a stage then takes
-arrays and a :class:`~planner.camera.Camera` from it and never parses the mapping again.
+arrays and a :class:`~planner.camera.model.Camera` from it and never parses the mapping again.
 ``docs/plan-format.md`` documents the fields. Sections no stage computes with
 (``source``, ``graph``, ``schemes_considered``, ``verification.window_set``) are kept as
 mappings; keys this version does not read are kept too.
@@ -21,11 +21,10 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, model
 
 from planner._files import load_yaml
 from planner._schema import Coordinate, Count, Finite, Positive, Text, validated
+from planner.camera.file import CameraFields
 from planner.defaults import (
     LINE_CODE_NAMES,
-    MAX_FOCAL_PX,
     MAX_HEIGHT_M,
-    MAX_IMAGE_PX,
     MAX_RADIUS_M,
     MAX_VIDEO_FPS,
     MAX_VIDEO_FRAMES,
@@ -33,13 +32,12 @@ from planner.defaults import (
 )
 from planner.errors import InputError
 from planner.layout.model import name_problem
-from planner.lens import COEFFICIENTS, LENS_MODELS
-from planner.plan import FORMAT
 
 if TYPE_CHECKING:
-    from planner.camera import Camera
+    from planner.camera.model import Camera
 
-
+FORMAT = "vlp-plan/1"
+"""The ``format`` key of ``plan.yaml``."""
 
 
 class _Section(BaseModel):
@@ -93,44 +91,6 @@ class Code(_Section):
     word_bits: Annotated[Count, Field(ge=1, le=64)]
     check_bits: Count = 0
     method: Text = ""
-
-
-class CameraFields(BaseModel):
-    """A camera's fields as ``plan.yaml`` and camera YAML files write them (``docs/camera.md``)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-    width_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 4000
-    height_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 3000
-    fx_px: Annotated[Positive, Field(ge=1, le=MAX_FOCAL_PX)] | None = None
-    fy_px: Annotated[Positive, Field(ge=1, le=MAX_FOCAL_PX)] | None = None
-    cx_px: Finite | None = None
-    cy_px: Finite | None = None
-    hfov_deg: Annotated[Positive, Field(ge=0.1, lt=180)] | None = None
-    receiver_height_m: tuple[Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)],
-                             Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)]] = (0.5, 1.5)
-    max_tilt_deg: Annotated[Finite, Field(ge=0, lt=80)] = 40.0
-    row_time_s: Annotated[Positive, Field(le=1.0)] = 20e-6
-    lens: Literal[LENS_MODELS] = "pinhole"  # type: ignore[valid-type]
-    distortion: Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)] = []
-    name: Annotated[Text, Field(max_length=64)] = ""
-
-    @model_validator(mode="after")
-    def _heights_in_order(self) -> CameraFields:
-        low, high = self.receiver_height_m
-        if low > high:
-            raise ValueError(f"receiver_height_m must be [low, high] with low <= high, got [{low}, {high}]")
-        for name, value, size in (("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)):
-            if value is not None and not 0 <= value <= size:
-                raise ValueError(f"{name} {value:g} lies outside the {self.width_px} x {self.height_px} px image")
-        if len(self.distortion) > len(COEFFICIENTS[self.lens]):
-            raise ValueError(f"the {self.lens} lens takes at most {len(COEFFICIENTS[self.lens])} distortion "
-                             f"coefficients ({' '.join(COEFFICIENTS[self.lens])}), got {len(self.distortion)}")
-        return self
-
-    def to_camera(self) -> Camera:
-        from planner.camera import Camera
-
-        return Camera.from_dict(self.model_dump(exclude_none=True))
 
 
 class ModulationFields(_Section):
@@ -308,10 +268,11 @@ class PlanFile(_Section):
 
     @property
     def window_length_cap_m(self) -> float | None:
-        """A gravity plan's cap on its two-LED window's length [m] (``verification.window_set``), or None."""
+        """The plan's cap on its window's length [m] (``verification.window_set``; a gravity plan's two-LED
+        window, which only the gravity receiver's identification reads), or None."""
         window_set = (self.verification.window_set if self.verification else None) or {}
         cap = window_set.get("window_length_cap_m")
-        if cap is None or self.receiver_mode != "gravity":
+        if cap is None:
             return None
         if isinstance(cap, bool) or not isinstance(cap, (int, float)) or not 0 < cap < math.inf:
             raise InputError(f"verification.window_set.window_length_cap_m: {cap!r} is not a length > 0 m; "

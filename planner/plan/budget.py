@@ -53,7 +53,7 @@ class Work:
 def plan_sample_per_m2(area: np.ndarray, *, verify: bool, poses_per_m2: float, error_poses_per_m2: float) -> float:
     """Density of a plan's one shared pose sample over ``area`` [1/m^2]: the densest of chip timing,
     verification and the error map, which each take a prefix of it."""
-    from planner.modulation import timing_per_m2
+    from planner.modulation.timing import timing_per_m2
     from planner.positioning.accuracy import error_per_m2
 
     densities = [timing_per_m2(area)] + [poses_per_m2] * verify + \
@@ -63,7 +63,7 @@ def plan_sample_per_m2(area: np.ndarray, *, verify: bool, poses_per_m2: float, e
 
 def plan_work(xy: np.ndarray, outline, *, scheme: str, verify: bool, poses_per_m2: float,
               error_poses_per_m2: float) -> Work:
-    """The samples :func:`planner.pipeline.make_plan` draws for luminaires at ``xy`` [m]: one shared
+    """The samples :func:`planner.plan.pipeline.make_plan` draws for luminaires at ``xy`` [m]: one shared
     sample at the densest of verification, chip timing and the error map, and, for the window scheme
     without a complete proof (an upper bound: a proved site skips it), the design sample."""
     from planner.codes.schemes import design_per_m2

@@ -3,10 +3,10 @@
 A change that brings more poses a window can still stop the plan of the changed site at "no chip
 rate fits": a wider lens or higher luminaires make every LED image smaller, and the gravity
 receiver's two-LED windows reach farther LEDs (docs/advice.md). For a candidate site this module
-takes the smallest LED image of a window as the planner does (:func:`planner.modulation.
-smallest_window_image_rows` or :func:`planner.receivers.smallest_pair_image_rows` on the same
-seeded timing sample a plan of that site would draw) and asks :func:`planner.modulation.modulate`,
-the planner's check (one image, else over video frames, :mod:`planner.multiframe`), whether a frame
+takes the smallest LED image of a window as the planner does (:func:`planner.modulation.timing.
+smallest_image_rows` of its receiver mode (:mod:`planner.receivers.modes`) on the same
+seeded timing sample a plan of that site would draw) and asks :func:`planner.modulation.timing.modulate`,
+the planner's check (one image, else over video frames, :mod:`planner.modulation.multiframe`), whether a frame
 fits with the plan's driver limit and the candidate camera's row time; if not, the slowest driver
 (whole kHz) at which it would.
 
@@ -26,13 +26,14 @@ import numpy as np
 from planner.codes.assignment import bits_for
 from planner.codes.check_bits import check_code
 from planner.errors import PlanningError
-from planner.frame import frame_chips, line_code
-from planner.modulation import ROWS_PER_CHIP, modulate, smallest_window_image_rows, timing_per_m2
-from planner.multiframe import MAX_RATE_HZ
+from planner.modulation.frame import frame_chips, line_code
+from planner.modulation.multiframe import MAX_RATE_HZ
+from planner.modulation.timing import ROWS_PER_CHIP, modulate, timing_per_m2
+from planner.receivers.modes import receiver_for
 from planner.verify.windows import PoseSample, find_windows, sample_poses, working_area
 
 if TYPE_CHECKING:
-    from planner.advice_changes import Site
+    from planner.advice.changes import Site
 
 
 @dataclass(frozen=True)
@@ -82,20 +83,17 @@ def longest_word_bits(luminaires: int, limits: FrameLimits) -> int:
 def smallest_image_rows(site: Site, seed: int) -> float:
     """Rows of the smallest LED image of a window of ``site``'s receiver, as a plan of it with ``seed`` finds
     them; 0 when no sampled pose sees a window."""
-    from planner.receivers import smallest_pair_image_rows
-
     area = working_area(site.xyz[:, :2], site.outline)
     poses = sample_poses(area, site.camera, timing_per_m2(area), seed)  # the prefix a plan of the site times on
     sample = PoseSample(area, poses, find_windows(poses, site.xyz, site.radii, site.camera), seed)
-    smallest = smallest_pair_image_rows if site.receiver == "gravity" else smallest_window_image_rows
     try:
-        return smallest(site.xyz, site.radii, site.camera, sample)
+        return receiver_for(site.receiver).smallest_image_rows(site.xyz, site.radii, site.camera, sample)
     except PlanningError:
         return 0.0
 
 
 def frame_fit(site: Site, limits: FrameLimits, seed: int) -> FrameFit:
-    """Whether ``site``'s longest frame fits its smallest LED image (:func:`planner.modulation.modulate`), with the
+    """Whether ``site``'s longest frame fits its smallest LED image (:func:`planner.modulation.timing.modulate`), with the
     plan's driver limit, else with which driver (bisection on whole kHz: a faster driver only adds rates)."""
     words, code = longest_word_bits(len(site.xyz), limits), line_code(limits.line_code)
     chips = len(frame_chips(0, words, code))

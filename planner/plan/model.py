@@ -15,20 +15,20 @@ from typing import TYPE_CHECKING
 import yaml
 
 from planner import __version__
+from planner.plan.file import FORMAT
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
-    from planner.advice import Advice
-    from planner.camera import Camera
+    from planner.advice.advise import Advice
+    from planner.camera.model import Camera
     from planner.codes.assignment import Assignment
     from planner.codes.check_bits import CheckCode
     from planner.graph import NeighbourGraph
     from planner.layout.model import Layout
-    from planner.modulation import Modulation
+    from planner.modulation.timing import Modulation
     from planner.positioning.accuracy import SiteAccuracy
-    from planner.receivers import ReceiverChoice
+    from planner.receivers.choice import ReceiverChoice
     from planner.verify.verify import Verification
 
-FORMAT = "vlp-plan/1"
 _DECIMALS_M = 6
 
 

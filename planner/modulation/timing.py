@@ -15,7 +15,7 @@ The chip rate must satisfy four limits at once (docs/modulation.md):
 
 The rate chosen is the geometric mean of the bounds, to three significant digits.
 When not even one frame fits, the frame is read over ``k <= 4`` consecutive video
-frames instead (:mod:`planner.multiframe`): the rate is then the whole-hertz rate
+frames instead (:mod:`planner.modulation.multiframe`): the rate is then the whole-hertz rate
 within the other three limits at which ``k`` windows of the smallest image cover it.
 """
 
@@ -26,12 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.camera import Camera, disc_image_rows
+from planner.camera.model import Camera, disc_image_rows
 from planner.defaults import DRIVER_MAX_HZ, MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.errors import PlanningError
-from planner.frame import LineCode, frame_chips
 from planner.layout.model import area_m2
-from planner.multiframe import MAX_RATE_HZ, VideoFit, fit_video, rows_needed
+from planner.modulation.frame import LineCode, frame_chips
+from planner.modulation.multiframe import MAX_RATE_HZ, VideoFit, fit_video, rows_needed
 from planner.verify.windows import PoseSample
 
 FLICKER_HZ = 200.0

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from planner import lens
+from planner.camera import lens
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,7 @@ class Camera:
         Rolling-shutter time between two image rows [s].
     lens : str
         Distortion model: ``"pinhole"`` (OpenCV's ``k1 k2 p1 p2 k3``) or ``"fisheye"``
-        (OpenCV's ``k1 k2 k3 k4``); see :mod:`planner.lens`.
+        (OpenCV's ``k1 k2 k3 k4``); see :mod:`planner.camera.lens`.
     distortion : tuple of float
         The model's coefficients in OpenCV's order; empty (or all zero) is the ideal pinhole.
     name : str
@@ -123,7 +123,7 @@ class Camera:
         """The *view* ``(u_lo, u_hi, v_lo, v_hi)`` in ideal pixels [px]: an LED counts as wholly seen when its
         ideal (pinhole) image lies inside this rectangle. Without distortion it is the sensor itself; with
         distortion, the rectangle about the principal point whose distorted image lies on the sensor
-        (:func:`planner.lens.view_rectangle`; docs/verification.md, "Lens distortion")."""
+        (:func:`planner.camera.lens.view_rectangle`; docs/verification.md, "Lens distortion")."""
         if not self.distorted:
             return 0.0, float(self.width_px), 0.0, float(self.height_px)
         sensor = ((0.0 - self.cx_px) / self.fx_px, (self.width_px - self.cx_px) / self.fx_px,

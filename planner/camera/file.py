@@ -8,18 +8,67 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from planner._files import load_yaml
-from planner._schema import Positive, Text, validated
-from planner.camera import Camera
+from planner._schema import Count, Finite, Positive, Text, validated
+from planner.camera.lens import COEFFICIENTS, LENS_MODELS
+from planner.camera.model import Camera
+from planner.defaults import MAX_FOCAL_PX, MAX_HEIGHT_M, MAX_IMAGE_PX
 from planner.errors import InputError, UsageError
-from planner.plan_file import CameraFields
 
 PROFILES_FILE = "cameras.yaml"
 """The bundled profiles, in ``planner/data/``."""
+
+
+LensModel = Literal[LENS_MODELS]  # type: ignore[valid-type]  # the names, from planner.camera.lens
+"""A lens model's name, as camera files, plans and observation files write it."""
+
+Distortion = Annotated[list[Annotated[Finite, Field(ge=-100, le=100)]], Field(max_length=5)]
+"""Distortion coefficients as the files write them (how many a lens takes: :func:`check_distortion`)."""
+
+
+def check_distortion(lens: str, distortion: list[float]) -> None:
+    """ValueError (a file reader's field error) if ``lens`` takes fewer coefficients than ``distortion`` holds."""
+    if len(distortion) > len(COEFFICIENTS[lens]):
+        raise ValueError(f"the {lens} lens takes at most {len(COEFFICIENTS[lens])} distortion "
+                         f"coefficients ({' '.join(COEFFICIENTS[lens])}), got {len(distortion)}")
+
+
+class CameraFields(BaseModel):
+    """A camera's fields as ``plan.yaml`` and camera YAML files write them (``docs/camera.md``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    width_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 4000
+    height_px: Annotated[Count, Field(ge=1, le=MAX_IMAGE_PX)] = 3000
+    fx_px: Annotated[Positive, Field(ge=1, le=MAX_FOCAL_PX)] | None = None
+    fy_px: Annotated[Positive, Field(ge=1, le=MAX_FOCAL_PX)] | None = None
+    cx_px: Finite | None = None
+    cy_px: Finite | None = None
+    hfov_deg: Annotated[Positive, Field(ge=0.1, lt=180)] | None = None
+    receiver_height_m: tuple[Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)],
+                             Annotated[Finite, Field(ge=0, le=MAX_HEIGHT_M)]] = (0.5, 1.5)
+    max_tilt_deg: Annotated[Finite, Field(ge=0, lt=80)] = 40.0
+    row_time_s: Annotated[Positive, Field(le=1.0)] = 20e-6
+    lens: LensModel = "pinhole"
+    distortion: Distortion = []
+    name: Annotated[Text, Field(max_length=64)] = ""
+
+    @model_validator(mode="after")
+    def _heights_in_order(self) -> CameraFields:
+        low, high = self.receiver_height_m
+        if low > high:
+            raise ValueError(f"receiver_height_m must be [low, high] with low <= high, got [{low}, {high}]")
+        for name, value, size in (("cx_px", self.cx_px, self.width_px), ("cy_px", self.cy_px, self.height_px)):
+            if value is not None and not 0 <= value <= size:
+                raise ValueError(f"{name} {value:g} lies outside the {self.width_px} x {self.height_px} px image")
+        check_distortion(self.lens, self.distortion)
+        return self
+
+    def to_camera(self) -> Camera:
+        return Camera.from_dict(self.model_dump(exclude_none=True))
 
 
 class _ProfileFields(BaseModel):
@@ -96,7 +145,7 @@ def profile_rows() -> list[dict]:
 def read_camera(path: str | Path) -> Camera:
     """A camera from YAML: ``hfov_deg`` or intrinsics (``fx_px``...), image size, heights, tilt, row time.
 
-    The fields are checked by :class:`~planner.plan_file.CameraFields`, as a plan's ``camera`` section is.
+    The fields are checked by :class:`~planner.plan.file.CameraFields`, as a plan's ``camera`` section is.
     """
     path = Path(path)
     doc = load_yaml(path, "no such camera file")

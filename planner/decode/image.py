@@ -1,4 +1,4 @@
-"""Decode a camera frame as a receiver app does: LED blobs, ellipses, stripes, chips, IDs, a snapshot.
+"""Decode a camera frame as a receiver app does: LED blobs, ellipses, stripes, chips, IDs.
 
 1. **Blobs**: threshold above the dark ceiling, close the stripes' dark gaps
    vertically (the longest dark run a frame allows, in rows), and keep connected
@@ -6,7 +6,7 @@
 2. **Ellipse**: each lit row of a blob gives two rim points, where the row's
    brightness crosses half its plateau (sub-pixel, by interpolation). Rows are
    lit or dark as a whole, so these points lie on the LED's rim whatever the
-   stripes; the ellipse is fitted to them (:func:`planner.ellipse.fit_ellipse`).
+   stripes; the ellipse is fitted to them (:func:`planner.camera.ellipse.fit_ellipse`).
    A fitted ellipse reaching outside the image, or leaving lit pixels of its own
    rows outside it (a sliver of an LED cut by the border fits a wrong small ellipse),
    is dropped; a blob merely touching the border, or merged with another LED's
@@ -15,7 +15,7 @@
    (row ``v`` at ``v * row_time_s``); thresholded halfway between its dark and lit
    levels, each run of rows becomes ``round(rows / rows_per_chip)`` chips; the
    partial runs at both ends are dropped.
-4. **ID**: :func:`planner.frame.decode_stream` finds the preamble and reads the
+4. **ID**: :func:`planner.modulation.frame.decode_stream` finds the preamble and reads the
    word; with check bits, the word is looked up among the codewords.
 
 The receiver knows the site's modulation (line code, word length, chip rate)
@@ -31,14 +31,13 @@ from typing import TYPE_CHECKING, NamedTuple
 import cv2
 import numpy as np
 
-from planner.camera import Camera
-from planner.ellipse import Ellipse, fit_ellipse
+from planner.camera.ellipse import Ellipse, fit_ellipse
+from planner.camera.model import Camera
 from planner.errors import InputError, PositioningError
-from planner.frame import LineCode, decode_stream, line_code
-from planner.positioning.locate import Snapshot
+from planner.modulation.frame import LineCode, decode_stream, line_code
 
 if TYPE_CHECKING:
-    from planner.plan_file import PlanFile
+    from planner.plan.file import PlanFile
 
 MIN_BLOB_PX = 40
 """Smallest blob kept [px]: smaller ones are noise or LEDs too small to read."""
@@ -100,7 +99,7 @@ def _background(image: np.ndarray) -> tuple[float, float]:
     return level, max(1.0, 1.4826 * float(np.median(np.abs(sample - level))))
 
 
-def _rim_points(roi: np.ndarray, own: np.ndarray, threshold: float, level: float) -> np.ndarray:
+def rim_points(roi: np.ndarray, own: np.ndarray, threshold: float, level: float) -> np.ndarray:
     """Sub-pixel rim points (x, y) of a blob's lit rows, in ROI coordinates (all rows at once)."""
     rows = np.flatnonzero(own.any(axis=1))
     width = roi.shape[1]
@@ -135,13 +134,13 @@ def _rim_points(roi: np.ndarray, own: np.ndarray, threshold: float, level: float
 
 def chord_rows(height: int, ellipse: Ellipse, y0: int, margin: float) -> np.ndarray:
     """Rows of a region of interest starting at image row ``y0`` (``height`` rows) that the ellipse spans
-    at least ``margin`` rows inside its rim: the rows :func:`_row_levels` reads, in its order."""
+    at least ``margin`` rows inside its rim: the rows :func:`row_levels` reads, in its order."""
     cy = ellipse.cy - y0
     half_h = math.sqrt(max((ellipse.shape @ ellipse.shape)[1, 1], 0.0))
     return np.arange(max(0, math.ceil(cy - half_h + margin)), min(height, math.floor(cy + half_h - margin) + 1))
 
 
-def _row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: float) -> np.ndarray:
+def row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: float) -> np.ndarray:
     """Mean of the inner chord of every row of :func:`chord_rows` (NaN where the chord is too short)."""
     q = np.linalg.inv(ellipse.shape @ ellipse.shape)
     cx, cy = ellipse.cx - x0, ellipse.cy - y0
@@ -163,7 +162,7 @@ def _row_levels(roi: np.ndarray, ellipse: Ellipse, x0: int, y0: int, margin: flo
     return levels
 
 
-def _fits_blob(own: np.ndarray, ellipse: Ellipse, x0: int, y0: int, slack: float) -> bool:
+def fits_blob(own: np.ndarray, ellipse: Ellipse, x0: int, y0: int, slack: float) -> bool:
     """Whether the fitted ellipse accounts for the blob's lit pixels in its own rows.
 
     In every row of the ellipse grown by ``slack`` [px] (blur, sub-pixel edges), the lit
@@ -255,14 +254,14 @@ def decode_frame(image: np.ndarray, camera: Camera, modulation: FrameFormat, *,
         x1, y1 = min(width, x + w + pad), min(height, y + h + pad)
         roi = image[y0:y1, x0:x1]
         own = (labels[y0:y1, x0:x1] == k) & (roi > threshold)
-        pts = _rim_points(roi, own, threshold, level)
+        pts = rim_points(roi, own, threshold, level)
         try:
             ellipse = fit_ellipse(pts + (x0, y0))
         except PositioningError:
             blobs.append(Blob(bbox, None, "", None, "too few lit rows for an ellipse"))
             continue
         half = np.sqrt(np.diag(ellipse.shape @ ellipse.shape))
-        if not _fits_blob(own, ellipse, x0, y0, slack=4.0 + 3.0 * blur_px):
+        if not fits_blob(own, ellipse, x0, y0, slack=4.0 + 3.0 * blur_px):
             touching = x == 0 or y == 0 or x + w >= width or y + h >= height
             blobs.append(Blob(bbox, ellipse, "", None, "cut by the image border" if touching
                               else "blob and fitted ellipse disagree"))
@@ -271,7 +270,7 @@ def decode_frame(image: np.ndarray, camera: Camera, modulation: FrameFormat, *,
                                                                                            height - 1 + BORDER_PX)):
             blobs.append(Blob(bbox, ellipse, "", None, "cut by the image border"))
             continue
-        chips = chips_from_levels(_row_levels(roi, ellipse, x0, y0, margin=1.0 + blur_px), rows_per_chip)
+        chips = chips_from_levels(row_levels(roi, ellipse, x0, y0, margin=1.0 + blur_px), rows_per_chip)
         try:
             word = decode_stream(chips, modulation.word_bits, modulation.code)
         except InputError:
@@ -288,7 +287,7 @@ def read_blobs(blobs: list[Blob], camera: Camera) -> list[int]:
     return sorted(read, key=lambda k: _off_centre(blobs[k], camera))
 
 
-def _read(blob: Blob) -> tuple[int, Ellipse]:
+def read_ellipse(blob: Blob) -> tuple[int, Ellipse]:
     """A read blob's ID and ellipse (an ID is only read from a blob with an ellipse)."""
     assert blob.id is not None and blob.ellipse is not None
     return blob.id, blob.ellipse
@@ -296,15 +295,10 @@ def _read(blob: Blob) -> tuple[int, Ellipse]:
 
 def _off_centre(blob: Blob, camera: Camera) -> float:
     """Distance of the blob's centre from the principal point in ideal pixels (undistorted: by ray angle)."""
-    ellipse = _read(blob)[1]
+    ellipse = read_ellipse(blob)[1]
     if camera.distorted:
         u, v = camera.ideal_pixels(ellipse.centre)
         return math.hypot(u - camera.cx_px, v - camera.cy_px)
     return math.hypot(ellipse.cx - camera.cx_px, ellipse.cy - camera.cy_px)
 
 
-def snapshot(blobs: list[Blob], camera: Camera) -> Snapshot:
-    """The positioning stage's input: the read blobs' IDs and ellipses, nearest the image centre first
-    (distorted ellipses and the distorting camera: positioning undistorts them, :meth:`Snapshot.ideal`)."""
-    read = [_read(blobs[k]) for k in read_blobs(blobs, camera)]
-    return Snapshot(camera, [led_id for led_id, _ in read], [ellipse for _, ellipse in read])

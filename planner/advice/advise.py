@@ -9,7 +9,7 @@ whose camera sees a window of its receiver mode: three whole, non-collinear LEDs
 paper's rule, section 3), or two whole LEDs with gravity. The IDs are designed afterwards
 to make those windows unique, so this is the coverage a plan of the changed site
 can reach. Given the plan's frame limits, a change whose coverage reaches the goal is
-also checked to still fit its frames (:mod:`planner.advice_frames`): one that needs faster
+also checked to still fit its frames (:mod:`planner.advice.frames`): one that needs faster
 drivers says so, one that fits at no driver rate is not recommended. Every figure is
 sampled, never proved. ``docs/advice.md``.
 """
@@ -21,10 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.advice_changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
-from planner.advice_frames import FrameFit, FrameLimits, frame_fit, frame_text
+from planner.advice.changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
+from planner.advice.frames import FrameFit, FrameLimits, frame_fit, frame_text
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2
+from planner.receivers.modes import PAPER
+from planner.receivers.modes import RECEIVERS as MODES
 from planner.verify.windows import working_area
 
 ADVICE_POSES_PER_M2 = 10.0
@@ -200,7 +202,7 @@ def verdict(advice: dict) -> str:
     cov, goal = 100 * advice["coverage"], 100 * advice["goal"]
     if not advice["usable"]:
         few, alike = 100 * advice.get("too_few_leds", 0.0), 100 * advice.get("ambiguous", 0.0)
-        seen = "two" if advice.get("receiver") == "gravity" else "three"
+        seen = MODES.get(str(advice.get("receiver")), PAPER).leds_text
         why = (f"{few:.0f} % see fewer than {seen} whole LEDs: the luminaires are too sparse for this camera"
                if few >= 50 else f"{alike:.0f} % are ambiguous under this scheme (--scheme auto avoids that)"
                if alike >= few else "poses fail near the walls or see collinear LEDs")

@@ -1,63 +1,72 @@
-"""Receiver modes: the paper's three-LED receiver, or two LEDs plus gravity; and which serves a site.
-
-``three`` is the paper's receiver (a window of three whole LEDs, :mod:`planner.verify.windows`).
-``gravity`` takes the accelerometer's vertical and a window of two (:mod:`planner.verify.pair_windows`,
-:mod:`planner.positioning.gravity`); its IDs are the pair code (:mod:`planner.codes.pair_code`) or
-the paper's, judged on the two-LED windows. ``auto`` plans the three-LED receiver and, where it
-decodes fewer than :data:`AUTO_GOAL` of the sampled poses, the gravity receiver too, and keeps the
-mode that decodes more poses (docs/schemes.md, "Receiver modes").
-"""
+"""Two LEDs plus gravity: the accelerometer's vertical and a window of two whole LEDs
+(:mod:`planner.verify.pair_windows`, :mod:`planner.positioning.gravity`); its IDs are the pair code
+(:mod:`planner.codes.pair_code`) or the paper's, judged on the two-LED windows and the pair set."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
-from planner.camera import Camera, disc_image_rows
+from planner.camera.model import Camera, Poses, disc_image_rows
 from planner.codes.assignment import Assignment, assign_paper
 from planner.codes.pair_code import assign_pairs
 from planner.codes.schemes import assign_unique
 from planner.errors import PlanningError
 from planner.graph import NeighbourGraph
-from planner.modulation import timing_per_m2
+from planner.modulation.timing import timing_per_m2
+from planner.positioning.error_terms import ErrorTerms
+from planner.positioning.gravity import accelerometer
+from planner.receivers.base import Job, Planned, Receiver
 from planner.verify.pair_proof import prove_pair_set
-from planner.verify.pair_windows import (
-    PosePairs,
-    check_pair_set,
-    classify_pairs,
-    find_pairs,
-    window_pairs,
-)
+from planner.verify.pair_windows import PosePairs, check_pair_set, classify_pairs, find_pairs, window_pairs
 from planner.verify.verify import Verification
-from planner.verify.windows import PoseSample, PoseWindows
-
-AUTO_GOAL = 0.9
-"""``--receiver auto`` plans the gravity receiver too where the three-LED one decodes fewer poses than this."""
+from planner.verify.windows import CONGRUENCE_TOLERANCE_M, PoseSample, sample_poses, working_area
 
 
-def seen_shares(windows: PoseWindows) -> dict:
-    """Shares of sampled poses by what they see: a three-LED window, two or more whole LEDs, exactly one."""
-    n = max(len(windows.seen), 1)
-    return {"three_led_window": round(float(windows.covered.sum()) / n, 6),
-            "two_or_more_leds": round(float((windows.seen >= 2).sum()) / n, 6),
-            "exactly_one_led": round(float((windows.seen == 1).sum()) / n, 6)}
+class TwoLedsGravity(Receiver):
+    name = "gravity"
+    leds = 2
+    title = "two LEDs plus gravity"
+    window_words = "two whole LEDs (with gravity)"
+    shape = "pairs"
+    leds_text = "two"
+    extra_error_terms = ("accelerometer",)
 
+    def plan(self, job: Job) -> Planned:
+        return plan_gravity(job.xyz, job.radii, job.graph, job.camera, job.sample, scheme=job.scheme,
+                            per_m2=job.poses_per_m2, seed=job.seed, time_budget=job.time_budget,
+                            tolerance_m=job.tolerance_m, install_tolerance_m=job.install_tolerance_m)
 
-@dataclass(frozen=True)
-class ReceiverChoice:
-    """The mode a plan is made for, each planned mode's sampled coverage, and what the poses see."""
+    def verify(self, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
+               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict) -> Verification:
+        return verify_gravity(xyz, radii, ids, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m,
+                              install_tolerance_m=install_tolerance_m)
 
-    mode: str
-    coverage: dict[str, float]
-    seen: dict
-    reason: str
-    accelerometer_sigma_deg: float
+    def coverage(self, xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, per_m2: float, seed: int) -> float:
+        poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
+        return float(find_pairs(poses, xyz, radii, camera).covered.mean())
 
-    def summary(self) -> dict:
-        return {"mode": self.mode, "coverage": {k: round(v, 6) for k, v in self.coverage.items()},
-                "poses_seeing": self.seen, "reason": self.reason,
-                **({"accelerometer_sigma_deg": self.accelerometer_sigma_deg} if self.mode == "gravity" else {})}
+    def decodable(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, camera: Camera, *,
+                  per_m2: float, seed: int) -> np.ndarray:
+        pp = find_pairs(poses, xyz, radii, camera)
+        return classify_pairs(poses.position, pp, xyz, ids, per_m2=per_m2, seed=seed,
+                              tolerance_m=CONGRUENCE_TOLERANCE_M).status
+
+    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
+        return smallest_pair_image_rows(xyz, radii, camera, sample)
+
+    def vertical(self, rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray | None:
+        return accelerometer(rotation, sigma_rad, rng)
+
+    def exact_vertical(self, rotation: np.ndarray) -> np.ndarray | None:
+        return rotation.T @ np.array([0.0, 0.0, -1.0])
+
+    def accuracy_method(self, method: str) -> str:
+        return "gravity"
+
+    def error_terms(self, terms: ErrorTerms, accelerometer_sigma_rad: float) -> ErrorTerms:
+        return replace(terms, gravity_rad=accelerometer_sigma_rad)
 
 
 def smallest_pair_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
