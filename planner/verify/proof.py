@@ -42,9 +42,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.camera import Camera
-from planner.codes.rivals import shape_matches, triples_of_pairs
+from planner.parallel import Runner
 from planner.verify.envelope import Envelope, NotProvable, envelope
-from planner.verify.window_set import empty_triangles, may_be_decoded
+from planner.verify.tiles import tiled_shape_matches, tiled_windows
 from planner.verify.windows import twice_signed_area
 
 MIN_CELL_M = 0.005
@@ -252,16 +252,30 @@ def _strip(tree: cKDTree, a: np.ndarray, b: np.ndarray, step_m: float, n: int) -
 
 def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = PAIR_BUDGET) -> np.ndarray:
     """Pairs ``i < j`` (M x 2) that can be two members of a window at some pose of the envelope;
-    :class:`NotProvable` when more than ``budget`` pairs lie within reach."""
+    :class:`NotProvable` when more than ``budget`` pairs lie within reach. (One tile: the whole site;
+    :func:`possible_windows` runs :func:`pairs_kept` per tile.)"""
     n = len(xy)
     tree = cKDTree(xy)
-    pairs = tree.query_pairs(env.reach_m + 2 * env.install_m, output_type="ndarray").astype(np.int64)
+    pairs = tree.query_pairs(pair_reach_m(env), output_type="ndarray").astype(np.int64)
     if len(pairs) > budget:
         raise NotProvable(f"{len(pairs):,} pairs of luminaires within the camera's reach of "
                           f"{env.reach_m:.2f} m, over the proof's budget of {budget:,}")
     if len(pairs) == 0 or n < 4:
         return pairs.reshape(-1, 2)
-    small = radii <= radii.min() + 1e-12  # only the smallest discs surely count in case B at pair level
+    return pairs[pairs_kept(xy, radii, env, tree, pairs, float(radii.min()))]
+
+
+def pair_reach_m(env: Envelope) -> float:
+    """Farthest apart two members of one window can be drawn [m]: the reach plus both displacements."""
+    return env.reach_m + 2 * env.install_m
+
+
+def pairs_kept(xy: np.ndarray, radii: np.ndarray, env: Envelope, tree: cKDTree, pairs: np.ndarray,
+               min_radius_m: float) -> np.ndarray:
+    """Which ``pairs`` (M, 2) of ``xy`` (whose KD-tree is ``tree``) neither case excludes (M,); ``min_radius_m``
+    is the smallest disc of the site (only those surely count in case B at pair level)."""
+    n = len(xy)
+    small = radii <= min_radius_m + 1e-12
     keep = np.zeros(len(pairs), dtype=bool)
     for start in range(0, len(pairs), _CHUNK):
         pr = pairs[start:start + _CHUNK]
@@ -275,25 +289,21 @@ def possible_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, budget: int
         xs = xy[np.maximum(strip, 0)]
         case_b = (_apex_cover(a, b, xs, sv, env, 1.0) < 2) | (_apex_cover(a, b, xs, sv, env, -1.0) < 2)
         keep[start:start + len(pr)] = case_a | case_b
-    return pairs[keep]
+    return keep
 
 
 def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: int = TRIANGLE_BUDGET,
-                     pair_budget: int = PAIR_BUDGET) -> np.ndarray:
-    """Every triple (T x 3, ``i < j < k``) that may be a window at some pose of the envelope;
-    :class:`NotProvable` when more than ``budget`` candidates pass the cheap tests."""
-    xy = xyz[:, :2]
+                     pair_budget: int = PAIR_BUDGET, runner: Runner | None = None) -> np.ndarray:
+    """Every triple (T x 3, ``i < j < k``) that may be a window at some pose of the envelope, proved tile by
+    tile (:mod:`planner.verify.tiles`) on ``runner`` (default: in process). ``budget`` and ``pair_budget``
+    hold per tile: a tile over either keeps every candidate of its cheap tests, unexcluded
+    (:attr:`TiledWindows.over_budget` names it; use :func:`planner.verify.tiles.tiled_windows` to see it)."""
+    return tiled_windows(xyz, radii, env, runner, budget, pair_budget).triangles
+
+
+def windows_kept(xy: np.ndarray, radii: np.ndarray, env: Envelope, tree: cKDTree, cand: np.ndarray) -> np.ndarray:
+    """Which candidate triangles ``cand`` (T, 3) of ``xy`` (whose KD-tree is ``tree``) case A or case B keeps (T,)."""
     n = len(xy)
-    if n < 3:
-        return np.empty((0, 3), dtype=np.int64)
-    cand = triples_of_pairs(possible_pairs(xy, radii, env, pair_budget), n)
-    cand = cand[may_be_decoded(xy[cand], env.install_m)]
-    cand = cand[empty_triangles(cand, xyz, radii, env.install_m)]
-    if len(cand) > budget:
-        raise NotProvable(f"{len(cand):,} candidate triangles, over the proof's budget of {budget:,}")
-    if n == 3 or len(cand) == 0:
-        return cand
-    tree = cKDTree(xy)
     keep = np.zeros(len(cand), dtype=bool)
     for start in range(0, len(cand), _CHUNK):
         tr = cand[start:start + _CHUNK]
@@ -321,18 +331,20 @@ def possible_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, budget: 
         if undecided.any():
             case_b[undecided] = _inside_alive(p[undecided], xy[near[undecided]], (valid & small)[undecided], env)
         keep[start:start + len(tr)] = case_a | case_b
-    return cand[keep]
+    return keep
 
 
 @dataclass(frozen=True)
 class Proof:
-    """The outcome of :func:`prove_window_set` for the site ``xyz``: the proved window set, or why there is none."""
+    """The outcome of :func:`prove_window_set` for the site ``xyz``: the proved window set, or why there is none;
+    ``runner`` runs its rival search (:meth:`shape_matches`) too."""
 
     triangles: np.ndarray | None
     reason: str
     envelope: dict | None
     xyz: np.ndarray | None = None
     _matches: dict[float, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
+    runner: Runner | None = field(default=None, compare=False, repr=False)
 
     @property
     def complete(self) -> bool:
@@ -343,14 +355,17 @@ class Proof:
         found once per tolerance [m] however many schemes are judged against the proof."""
         assert self.triangles is not None and self.xyz is not None
         if tolerance_m not in self._matches:
-            self._matches[tolerance_m] = shape_matches(self.triangles, self.xyz, tolerance_m)
+            self._matches[tolerance_m] = tiled_shape_matches(self.triangles, self.xyz, tolerance_m, self.runner)
         return self._matches[tolerance_m]
 
 
-def prove_window_set(xyz: np.ndarray, radii: np.ndarray, camera: Camera, install_tolerance_m: float) -> Proof:
-    """Every triple that may be a window at some pose, or the reason this site and camera are not proved."""
+def prove_window_set(xyz: np.ndarray, radii: np.ndarray, camera: Camera, install_tolerance_m: float,
+                     runner: Runner | None = None) -> Proof:
+    """Every triple that may be a window at some pose, or the reason this site and camera are not proved;
+    the tiles run on ``runner`` (default: in process), the result is the same whatever runs them."""
     try:
         env = envelope(camera, xyz, radii, install_tolerance_m)
-        return Proof(possible_windows(xyz, radii, env), "", env.summary(), xyz)
+        tiled = tiled_windows(xyz, radii, env, runner, TRIANGLE_BUDGET, PAIR_BUDGET)
+        return Proof(tiled.triangles, "", env.summary() | tiled.summary(), xyz, runner=runner)
     except NotProvable as exc:
         return Proof(None, str(exc), None)

@@ -1,0 +1,139 @@
+"""Where tile jobs run: in this process, on local worker processes, or on a Dask cluster.
+
+One seam: :meth:`Runner.map` applies a pure function to a list of jobs, ``fn(shared, job)``
+for each, and returns the results in the jobs' order, whoever computed them. The proof
+and the rival checks cut their work into tile jobs whose results depend only on the site
+(:mod:`planner.verify.tiles`), so a plan is byte-identical whatever runs it.
+
+* :class:`InProcess` (the default): one job after the other.
+* :class:`LocalProcesses` (``--workers N``): a ``ProcessPoolExecutor`` of N spawned processes,
+  kept for the runner's life (``with`` block); ``shared`` is sent with each job.
+* :class:`DaskCluster` (``--scheduler ADDRESS``): a ``dask.distributed`` client; ``shared`` is
+  scattered to every worker once per :meth:`~Runner.map`.
+
+Progress goes to stderr on a terminal only (one line, rewritten), never into any output.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from planner.errors import InputError, UsageError
+
+CONNECT_TIMEOUT_S = 10.0
+"""How long ``--scheduler ADDRESS`` waits for the scheduler before giving up [s]."""
+
+
+class Runner:
+    """Runs ``fn(shared, job)`` for every job; results in the jobs' order. Use as a context manager."""
+
+    workers = 1
+    description = "in process"
+
+    def map(self, fn: Callable[[Any, Any], Any], shared: Any, jobs: Sequence[Any], label: str = "") -> list:
+        out = []
+        for k, job in enumerate(jobs):
+            out.append(fn(shared, job))
+            _progress(label, k + 1, len(jobs))
+        return out
+
+    def close(self) -> None:
+        """Release the workers (nothing to release in process)."""
+
+    def __enter__(self) -> Runner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class InProcess(Runner):
+    """Every job in this process, in order (the default)."""
+
+
+class LocalProcesses(Runner):
+    """Jobs on ``workers`` local processes (spawned: no state is inherited from this one)."""
+
+    def __init__(self, workers: int):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.workers = workers
+        self.description = f"{workers} local processes"
+        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+
+    def map(self, fn, shared, jobs, label=""):
+        futures = [self._pool.submit(fn, shared, job) for job in jobs]
+        return _gather(futures, label, lambda f: f.result())
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskCluster(Runner):
+    """Jobs on the workers of the Dask scheduler at ``address`` (``tcp://host:8786``)."""
+
+    def __init__(self, address: str):
+        try:
+            from distributed import Client
+        except ImportError:  # pragma: no cover - a dependency of the package
+            raise UsageError("--scheduler needs dask.distributed: pip install 'dask[distributed]'") from None
+        try:
+            self._client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"--scheduler {address}: no Dask scheduler answers there ({_first_line(exc)}); "
+                             "start one (dask scheduler) or check the address") from None
+        self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
+        self.description = f"Dask scheduler {address} ({self.workers} workers)"
+
+    def map(self, fn, shared, jobs, label=""):
+        if not jobs:
+            return []
+        data = self._client.scatter(shared, broadcast=True)
+        futures = [self._client.submit(fn, data, job, pure=False) for job in jobs]
+        try:
+            return _gather(futures, label, lambda f: f.result())
+        finally:
+            self._client.cancel([data])
+
+    def close(self) -> None:
+        self._client.close()
+
+
+def runner(workers: int = 1, scheduler: str | None = None) -> Runner:
+    """The runner the command line asks for: a Dask client, ``workers`` local processes, or in process."""
+    if scheduler is not None and workers > 1:
+        raise UsageError("--workers and --scheduler exclude each other: the scheduler's workers run the tiles")
+    if scheduler is not None:
+        return DaskCluster(scheduler)
+    if workers > 1:
+        return LocalProcesses(workers)
+    return InProcess()
+
+
+def _gather(futures: list, label: str, result: Callable[[Any], Any]) -> list:
+    """The futures' results in their order, with progress as each arrives."""
+    out = []
+    for k, f in enumerate(futures):
+        out.append(result(f))
+        _progress(label, k + 1, len(futures))
+    return out
+
+
+def _on_terminal() -> bool:
+    return sys.stderr.isatty()
+
+
+def _progress(label: str, done: int, total: int) -> None:
+    """``label: done/total tiles`` on stderr, rewritten in place; only on a terminal and for several jobs."""
+    if not label or total < 2 or not _on_terminal():
+        return
+    end = "\n" if done == total else ""
+    print(f"\r  {label}: {done}/{total} tiles", end=end, file=sys.stderr, flush=True)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
