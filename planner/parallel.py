@@ -79,7 +79,7 @@ class DaskCluster(Runner):
         try:
             from distributed import Client
         except ImportError:  # pragma: no cover - a dependency of the package
-            raise UsageError("--scheduler needs dask.distributed: pip install 'dask[distributed]'") from None
+            raise UsageError("--scheduler needs dask.distributed: pip install 'vlp-plan[cluster]'") from None
         try:
             self._client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:

@@ -35,6 +35,7 @@ from planner.frame import line_code
 from planner.graph import build_graph
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, check_layout, fill_outline
 from planner.modulation import DRIVER_MAX_HZ, modulate, smallest_window_image_rows
+from planner.parallel import InProcess, Runner
 from planner.plan import Plan, dump_plan, plan_document, plan_hash
 from planner.plan_file import plan_from_document
 from planner.positioning.accuracy import ERROR_POSES_PER_M2, site_accuracy
@@ -95,6 +96,7 @@ class PlanOptions:
     mcu_clock_hz: float | None = 16e6  # the drivers' timer clock: a multi-frame rate is one it plays exactly
     coverage_goal: float = COVERAGE_GOAL
     allow_unusable: bool = False  # recorded in the advice: vlp-verify then exits 0 on an unusable plan too
+    runner: Runner = field(default_factory=InProcess, compare=False)  # where the proof's tiles run (planner.parallel)
 
 
 def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadOptions()) -> Layout:
@@ -198,7 +200,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         return classify(observations[options.seed], ids) if options.verify else None
 
     def plan_three():
-        proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m) if options.verify else None
+        proof = prove_window_set(xyz, radii, cam, options.install_tolerance_m, options.runner) if options.verify else None
         made = {}
         if options.scheme in ("paper", "auto"):
             paper = assign_paper(xy, graph, time_budget=options.time_budget, seed=options.seed)

@@ -35,6 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
     cli.add_verify_flags(p)
+    cli.add_parallel_flags(p)
     p.add_argument("--seed", type=cli.seed, default=0, help="seed of the pose sample (default 0)")
     p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
     cli.common_flags(p, "print the verification summary as JSON")
@@ -110,11 +111,14 @@ def _verify_three(xyz, radii, ids, plan, camera, args, recorded: dict, install: 
                          tolerance_m=args.tolerance)
     # The proof is made anew from the luminaires and the camera, never read from the plan; without
     # one, only the sampled side bound may come from the plan.
-    proof = prove_window_set(xyz, radii, camera, install)
     bound = max(side_bound(result.windows, xyz, args.tolerance), float(recorded.get("max_side_m", 0.0))
                 if recorded.get("max_side_from") != "proof" else 0.0)
-    return replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
-                                                       install_tolerance_m=install, proof=proof))
+    from planner.parallel import runner
+
+    with runner(args.workers, args.scheduler) as tiles:
+        proof = prove_window_set(xyz, radii, camera, install, tiles)
+        return replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=args.tolerance,
+                                                           install_tolerance_m=install, proof=proof))
 
 
 def console_main(argv: list[str] | None = None) -> int:

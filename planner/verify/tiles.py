@@ -31,7 +31,7 @@ from planner.parallel import InProcess, Runner
 from planner.verify.envelope import Envelope
 from planner.verify.window_set import NEIGHBOURS, empty_triangles, may_be_decoded
 
-TILE_LEDS = 128
+TILE_LEDS = 64
 """Luminaires per tile, about: enough tiles to share a 512-luminaire site between workers, few enough
 that a job's fixed cost (its KD-tree) stays small beside its work."""
 
@@ -64,7 +64,8 @@ def tiling(xy: np.ndarray, leds_per_tile: int = TILE_LEDS) -> Tiling:
     lo, span = xy.min(axis=0), np.ptp(xy, axis=0)
     count = max(1, round(n / leds_per_tile))
     side = max(math.sqrt(float(span[0] * span[1]) / count), float(span.max()) / count, 1e-6)
-    cell = np.floor((xy - lo) / side).astype(np.int64)
+    last = np.maximum(np.ceil(span / side).astype(np.int64) - 1, 0)  # points on the far edge join the last cell
+    cell = np.minimum(np.floor((xy - lo) / side).astype(np.int64), last)
     ncol = int(cell[:, 0].max()) + 1
     key = cell[:, 1] * ncol + cell[:, 0]
     keys, inverse = np.unique(key, return_inverse=True)
