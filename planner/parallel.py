@@ -8,6 +8,9 @@ and the rival checks cut their work into tile jobs whose results depend only on 
 * :class:`InProcess` (the default): one job after the other.
 * :class:`LocalProcesses` (``--workers N``): a ``ProcessPoolExecutor`` of N spawned processes,
   kept for the runner's life (``with`` block); ``shared`` is sent with each job.
+
+Jobs are taken from an iterable a few at a time (two in flight per worker), so a large site's
+jobs are made as they are needed, not all held in memory.
 * :class:`DaskCluster` (``--scheduler ADDRESS``): a ``dask.distributed`` client; ``shared`` is
   scattered to every worker once per :meth:`~Runner.map`.
 
@@ -17,7 +20,8 @@ Progress goes to stderr on a terminal only (one line, rewritten), never into any
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Sequence
+from collections import deque
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from planner.errors import InputError, UsageError
@@ -32,11 +36,14 @@ class Runner:
     workers = 1
     description = "in process"
 
-    def map(self, fn: Callable[[Any, Any], Any], shared: Any, jobs: Sequence[Any], label: str = "") -> list:
+    def map(self, fn: Callable[[Any, Any], Any], shared: Any, jobs: Iterable[Any], label: str = "",
+            total: int = 0) -> list:
+        """``[fn(shared, job) for job in jobs]``; ``jobs`` is consumed lazily (a few jobs in flight per
+        worker, so that a large site's jobs are never all in memory at once); ``total`` is for progress."""
         out = []
-        for k, job in enumerate(jobs):
+        for job in jobs:
             out.append(fn(shared, job))
-            _progress(label, k + 1, len(jobs))
+            _progress(label, len(out), total)
         return out
 
     def close(self) -> None:
@@ -64,9 +71,8 @@ class LocalProcesses(Runner):
         self.description = f"{workers} local processes"
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
 
-    def map(self, fn, shared, jobs, label=""):
-        futures = [self._pool.submit(fn, shared, job) for job in jobs]
-        return _gather(futures, label, lambda f: f.result())
+    def map(self, fn, shared, jobs, label="", total=0):
+        return _bounded(lambda job: self._pool.submit(fn, shared, job), jobs, 2 * self.workers, label, total)
 
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
@@ -88,13 +94,11 @@ class DaskCluster(Runner):
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
         self.description = f"Dask scheduler {address} ({self.workers} workers)"
 
-    def map(self, fn, shared, jobs, label=""):
-        if not jobs:
-            return []
-        data = self._client.scatter(shared, broadcast=True)
-        futures = [self._client.submit(fn, data, job, pure=False) for job in jobs]
+    def map(self, fn, shared, jobs, label="", total=0):
+        data = self._client.scatter(shared, broadcast=True, hash=False)  # a key of its own: cancelled below
         try:
-            return _gather(futures, label, lambda f: f.result())
+            return _bounded(lambda job: self._client.submit(fn, data, job, pure=False), jobs, 2 * self.workers,
+                            label, total)
         finally:
             self._client.cancel([data])
 
@@ -113,12 +117,18 @@ def runner(workers: int = 1, scheduler: str | None = None) -> Runner:
     return InProcess()
 
 
-def _gather(futures: list, label: str, result: Callable[[Any], Any]) -> list:
-    """The futures' results in their order, with progress as each arrives."""
-    out = []
-    for k, f in enumerate(futures):
-        out.append(result(f))
-        _progress(label, k + 1, len(futures))
+def _bounded(submit: Callable[[Any], Any], jobs: Iterable[Any], in_flight: int, label: str, total: int) -> list:
+    """Submit ``jobs`` keeping at most ``in_flight`` unfinished; their results in the jobs' order."""
+    out: list = []
+    pending: deque = deque()
+    for job in jobs:
+        pending.append(submit(job))
+        if len(pending) >= in_flight:
+            out.append(pending.popleft().result())
+            _progress(label, len(out), total)
+    while pending:
+        out.append(pending.popleft().result())
+        _progress(label, len(out), total)
     return out
 
 

@@ -176,25 +176,24 @@ def tiled_windows(xyz: np.ndarray, radii: np.ndarray, env: Envelope, runner: Run
     d_k = np.asarray(cKDTree(xy).query(xy, k=k)[0]).reshape(n, k)[:, -1]
     r = pair_reach_m(env)
     widths = [2 * r + float(d_k[m].max()) for m in tiles.members]
-    halos = [tiles.halo(t, w) for t, w in enumerate(widths)]
     shared = _Shared(env, float(radii.min()), n, budget, pair_budget)
 
     def job(t: int, pairs: np.ndarray | None = None) -> _Job:
-        h = halos[t]
+        h = tiles.halo(t, widths[t])
         owned = np.isin(h, tiles.members[t])
         return _Job(h, xyz[h], radii[h], owned, pairs)
 
-    first = runner.map(_pair_job, shared, [job(t) for t in range(len(halos))], "proof: pairs")
+    count = len(tiles.members)
+    first = runner.map(_pair_job, shared, (job(t) for t in range(count)), "proof: pairs", count)
     tile_pairs = [p for p, _ in first]
-    jobs = [job(t, np.concatenate([tile_pairs[u] for u in tiles.near_tiles(t, widths[t])]))
-            for t in range(len(halos))]
-    second = runner.map(_window_job, shared, jobs, "proof: triangles")
+    jobs = (job(t, np.concatenate([tile_pairs[u] for u in tiles.near_tiles(t, r)])) for t in range(count))
+    second = runner.map(_window_job, shared, jobs, "proof: triangles", count)
     pairs = np.concatenate(tile_pairs)
     cand = np.concatenate([c for c, _ in second])
     degree = np.bincount(pairs[:, 0], minlength=n)  # the untiled proof's order: triples_of_pairs of all pairs
     cand = cand[np.lexsort((cand[:, 2], cand[:, 1], cand[:, 0], degree[cand[:, 0]]))]
-    over = tuple(t for t in range(len(halos)) if first[t][1] or second[t][1])
-    return TiledWindows(cand, len(halos), over)
+    over = tuple(t for t in range(count) if first[t][1] or second[t][1])
+    return TiledWindows(cand, count, over)
 
 
 # --- rivals: the site's triples that can read like a proved window ---------------------------------
@@ -251,11 +250,13 @@ def tiled_shape_matches(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float
     exact = np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)])
     shared = _Shapes(np.unique(np.round(exact / GRAIN_M), axis=0) * GRAIN_M, max_side, tolerance_m + 1e-9)
     tiles = tiling(xy)
-    jobs = []
-    for t in range(len(tiles.members)):
+
+    def job(t: int) -> _Job:
         h = tiles.halo(t, max_side)
-        jobs.append(_Job(h, xyz[h], np.zeros(len(h)), np.isin(h, tiles.members[t])))
-    found = runner.map(_shape_job, shared, jobs, "rivals")
+        return _Job(h, xyz[h], np.zeros(len(h)), np.isin(h, tiles.members[t]))
+
+    count = len(tiles.members)
+    found = runner.map(_shape_job, shared, (job(t) for t in range(count)), "rivals", count)
     sure, sure_key = np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found])
     unsure, unsure_key = np.concatenate([f[2] for f in found]), np.concatenate([f[3] for f in found])
     if len(unsure):  # within a grain of the border: ask the exact shapes
