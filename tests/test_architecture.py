@@ -15,7 +15,8 @@ import planner
 
 PACKAGE = Path(planner.__file__).parent
 
-BASE = ("planner", "planner.errors", "planner.defaults", "planner._files", "planner._schema", "planner.plot_style")
+BASE = ("planner", "planner.errors", "planner.defaults", "planner._files", "planner._schema", "planner.plot_style",
+        "planner.parallel")
 """Shared base modules: any stage may import them; they import only each other."""
 
 STAGES: tuple[tuple[str, ...], ...] = (

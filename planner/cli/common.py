@@ -169,6 +169,17 @@ def add_verify_flags(p: argparse.ArgumentParser) -> None:
         add_camera_flag(g, "default: the camera recorded in the plan")
 
 
+def add_parallel_flags(p: argparse.ArgumentParser) -> None:
+    """``--workers`` and ``--scheduler``: where the proof's tiles run (:func:`planner.parallel.runner`)."""
+    g = p.add_argument_group("parallel")
+    g.add_argument("--workers", type=count_up_to(256), default=1, metavar="N",
+                   help="run the proof's and the rival search's tiles on N local processes (default 1: in this "
+                   "process); the outputs are byte-identical whatever runs them")
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the tiles on the Dask cluster whose scheduler is at ADDRESS (tcp://host:8786; "
+                   "its workers need this package installed)")
+
+
 def add_camera_flag(g, default: str) -> None:
     """``--camera NAME|YAML``: a bundled profile (``vlp-plan --list-cameras``) or a camera file."""
     g.add_argument("--camera", metavar="NAME|YAML",

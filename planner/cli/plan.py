@@ -75,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="send IDs as codewords at Hamming distance D, so that up to D-1 misread bits are "
                    "detected (default 1: no check bits)")
     cli.add_verify_flags(p)
+    cli.add_parallel_flags(p)
     g = p.add_argument_group("advice")
     g.add_argument("--coverage-goal", type=cli.at_most(100.0), default=100 * COVERAGE_GOAL, metavar="PCT",
                    help="share of sampled poses that should decode, in percent (default %(default)g); below it the "
@@ -146,6 +147,9 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
                          if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
     camera = cli.camera_from_args(args)  # a bad --camera is refused before any work
+    from planner.parallel import runner
+
+    tiles = runner(args.workers, args.scheduler)  # and a scheduler that does not answer
     t0 = time.perf_counter()
     read_opts = cli.read_options(args)
     clock = Timings(None if args.json else cli.progress)  # progress on a terminal, never with --json
@@ -156,17 +160,19 @@ def main(argv: list[str] | None = None) -> int:
     work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
-    plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=args.seed,
-                                         camera=camera, verify=not args.no_verify, poses_per_m2=args.poses_per_m2,
-                                         tolerance_m=args.tolerance, check_distance=args.check_distance,
-                                         locate_method=args.locate_method, error_poses_per_m2=args.error_poses_per_m2,
-                                         line_code=args.line_code, driver_max_hz=args.driver_max_hz,
-                                         install_tolerance_m=args.install_tolerance, error_terms=cli.error_terms(args),
-                                         video_fps=args.video_fps, max_video_frames=args.max_video_frames,
-                                         mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
-                                         accelerometer_sigma_deg=args.accelerometer_deg,
-                                         coverage_goal=args.coverage_goal / 100, allow_unusable=args.allow_unusable),
-                     clock)
+    with tiles:
+        plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=args.seed,
+                                             camera=camera, verify=not args.no_verify, poses_per_m2=args.poses_per_m2,
+                                             tolerance_m=args.tolerance, check_distance=args.check_distance,
+                                             locate_method=args.locate_method, error_poses_per_m2=args.error_poses_per_m2,
+                                             line_code=args.line_code, driver_max_hz=args.driver_max_hz,
+                                             install_tolerance_m=args.install_tolerance, error_terms=cli.error_terms(args),
+                                             video_fps=args.video_fps, max_video_frames=args.max_video_frames,
+                                             mcu_clock_hz=args.mcu_clock_hz, receiver=args.receiver,
+                                             accelerometer_sigma_deg=args.accelerometer_deg,
+                                             coverage_goal=args.coverage_goal / 100, allow_unusable=args.allow_unusable,
+                                             runner=tiles),
+                         clock)
     outdir = Path(args.outdir) if args.outdir else default_outdir(args.layout)
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
                                                              args.mcu_clock_hz, args.image_version)

@@ -36,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
     cli.add_verify_flags(p)
+    cli.add_parallel_flags(p)
     p.add_argument("--seed", type=cli.seed, default=0, help="seed of the pose sample (default 0)")
     p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
     cli.common_flags(p, "print the verification summary as JSON")
@@ -55,8 +56,12 @@ def main(argv: list[str] | None = None) -> int:
 
     check_work(verify_work(plan.xyz[:, :2], plan.outline, args.poses_per_m2), args.max_poses)
     camera = cli.camera_from_args(args, plan.camera_model())
-    result, judged = verify_plan_file(plan, camera, poses_per_m2=args.poses_per_m2, seed=args.seed,
-                                      tolerance_m=args.tolerance, install_tolerance_m=args.install_tolerance)
+    from planner.parallel import runner
+
+    with runner(args.workers, args.scheduler) as tiles:  # where the proof's tiles run
+        result, judged = verify_plan_file(plan, camera, poses_per_m2=args.poses_per_m2, seed=args.seed,
+                                          tolerance_m=args.tolerance, install_tolerance_m=args.install_tolerance,
+                                          runner=tiles)
     allowed = plan.advice is not None and plan.advice.allow_unusable
     passed = result.clean and (judged["usable"] or allowed) and not mismatches
     summary = result.summary(plan.names, limit=10)

@@ -36,6 +36,7 @@ from planner.graph import build_graph
 from planner.layout.model import Layout
 from planner.modulation.frame import line_code
 from planner.modulation.timing import DRIVER_MAX_HZ, Modulation, modulate
+from planner.parallel import Runner
 from planner.plan.budget import plan_sample_per_m2
 from planner.plan.file import plan_from_document
 from planner.plan.model import Plan, dump_plan, plan_document, plan_hash
@@ -79,6 +80,7 @@ class PlanOptions:
     mcu_clock_hz: float | None = MCU_CLOCK_HZ  # the drivers' timer clock: a multi-frame rate is one it plays exactly
     coverage_goal: float = COVERAGE_GOAL
     allow_unusable: bool = False  # recorded in the advice: vlp-verify then exits 0 on an unusable plan too
+    runner: Runner | None = field(default=None, compare=False)  # where the proof's tiles run (planner.parallel)
 
 
 def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Timings | None = None) -> Plan:
@@ -99,7 +101,7 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
                                 error_poses_per_m2=options.error_poses_per_m2)
     sample = PoseSample.draw(area, xyz, radii, cam, per_m2, options.seed)  # every stage takes a prefix
     job = Job(xyz, radii, layout.outline, graph, cam, sample, {}, options.scheme, options.seed, options.time_budget,
-              options.poses_per_m2, options.tolerance_m, options.install_tolerance_m, options.verify)
+              options.poses_per_m2, options.tolerance_m, options.install_tolerance_m, options.verify, options.runner)
     clock.stage("IDs and verification", f"{options.scheme} scheme, {options.receiver} receiver")
     (assignment, verification, considered), receiver = choose(job, options.receiver, options.accelerometer_sigma_deg)
     mode = receiver.mode if receiver is not None else PAPER

@@ -21,6 +21,7 @@ from planner.codes.check_bits import CheckCode, check_code
 from planner.defaults import INSTALL_TOLERANCE_M, MCU_CLOCK_HZ
 from planner.errors import InputError
 from planner.modulation.frame import LineCode, decode_stream, frame_chips, line_code
+from planner.parallel import Runner
 from planner.plan.file import Entry, PlanFile
 
 
@@ -107,7 +108,7 @@ def frame_mismatches(plan: PlanFile, where: str) -> list[Mismatch]:
 
 
 def verify_plan_file(plan: PlanFile, camera: Camera, *, poses_per_m2: float, seed: int, tolerance_m: float,
-                     install_tolerance_m: float | None = None):
+                     install_tolerance_m: float | None = None, runner: Runner | None = None):
     """Verify a plan's IDs anew (sampled poses; the window set, proved where the proof completes): ``(result,
     standing)`` where ``standing`` holds what :func:`planner.advice.verdict` reads."""
     from planner.advice.advise import standing
@@ -121,7 +122,8 @@ def verify_plan_file(plan: PlanFile, camera: Camera, *, poses_per_m2: float, see
         float(recorded.get("install_tolerance_m", INSTALL_TOLERANCE_M))
     mode = receiver_for(plan.receiver_mode, "receiver.mode")  # its windows and proof (planner.receivers)
     result = mode.verify(xyz, radii, ids, plan.outline, camera, per_m2=poses_per_m2, seed=seed,
-                         tolerance_m=tolerance_m, install_tolerance_m=install, recorded=recorded)
+                         tolerance_m=tolerance_m, install_tolerance_m=install, recorded=recorded,
+                         runner=runner)
     n = max(result.poses, 1)
     judged = standing(result.coverage, result.count(TOO_FEW) / n, result.count(AMBIGUOUS) / n,
                       plan.advice.goal if plan.advice is not None else COVERAGE_GOAL, plan.receiver_mode)

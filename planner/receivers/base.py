@@ -17,6 +17,7 @@ import numpy as np
 from planner.camera.model import Camera, Poses
 from planner.codes.assignment import Assignment
 from planner.graph import NeighbourGraph
+from planner.parallel import Runner
 from planner.positioning.error_terms import ErrorTerms
 from planner.verify.verify import Verification
 from planner.verify.windows import PoseSample
@@ -42,6 +43,7 @@ class Job:
     tolerance_m: float
     install_tolerance_m: float
     verify: bool
+    runner: Runner | None = None  # where the proof's tiles run (planner.parallel); None: in process
 
 
 Planned = tuple[Assignment, Verification | None, dict]
@@ -64,9 +66,11 @@ class Receiver:
         raise NotImplementedError
 
     def verify(self, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
-               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict) -> Verification:
+               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict,
+               runner: Runner | None = None) -> Verification:
         """A plan verified anew (``vlp-verify``): sampled windows and the window set, proved where the proof
-        completes (made from the luminaires and the camera; ``recorded``: the plan's window-set section)."""
+        completes (made from the luminaires and the camera, its tiles on ``runner``; ``recorded``: the plan's
+        window-set section)."""
         raise NotImplementedError
 
     def coverage(self, xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, per_m2: float, seed: int) -> float:

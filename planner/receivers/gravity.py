@@ -15,6 +15,7 @@ from planner.codes.schemes import assign_unique
 from planner.errors import PlanningError
 from planner.graph import NeighbourGraph
 from planner.modulation.timing import timing_per_m2
+from planner.parallel import Runner
 from planner.positioning.error_terms import ErrorTerms
 from planner.positioning.gravity import accelerometer
 from planner.receivers.base import Job, Planned, Receiver
@@ -39,7 +40,8 @@ class TwoLedsGravity(Receiver):
                             tolerance_m=job.tolerance_m, install_tolerance_m=job.install_tolerance_m)
 
     def verify(self, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
-               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict) -> Verification:
+               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict,
+               runner: Runner | None = None) -> Verification:
         return verify_gravity(xyz, radii, ids, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m,
                               install_tolerance_m=install_tolerance_m)
 

@@ -11,6 +11,7 @@ from planner.camera.model import Camera, Poses
 from planner.codes.assignment import assign_paper
 from planner.codes.schemes import assign_unique, assign_window
 from planner.modulation.timing import smallest_window_image_rows
+from planner.parallel import Runner
 from planner.receivers.base import Job, Planned, Receiver
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound, verify_plan
@@ -36,7 +37,7 @@ class ThreeLeds(Receiver):
         def verify_ids(ids: np.ndarray) -> Verification | None:
             return classify(observations[job.seed], ids) if job.verify else None
 
-        proof = prove_window_set(xyz, radii, job.camera, job.install_tolerance_m) if job.verify else None
+        proof = prove_window_set(xyz, radii, job.camera, job.install_tolerance_m, job.runner) if job.verify else None
         made = {}
         if job.scheme in ("paper", "auto"):
             paper = assign_paper(xy, graph, time_budget=job.time_budget, seed=job.seed)
@@ -76,11 +77,12 @@ class ThreeLeds(Receiver):
         return assignment, verification, considered
 
     def verify(self, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
-               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict) -> Verification:
+               seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict,
+               runner: Runner | None = None) -> Verification:
         result = verify_plan(xyz, radii, ids, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
         # The proof is made anew from the luminaires and the camera, never read from the plan; without
         # one, only the sampled side bound may come from the plan.
-        proof = prove_window_set(xyz, radii, camera, install_tolerance_m)
+        proof = prove_window_set(xyz, radii, camera, install_tolerance_m, runner)
         bound = max(side_bound(result.windows, xyz, tolerance_m), float(recorded.get("max_side_m", 0.0))
                     if recorded.get("max_side_from") != "proof" else 0.0)
         return replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=tolerance_m,

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.verify.envelope import Envelope
-from planner.verify.proof import MIN_CELL_M, _near
+from planner.verify.exclusion import MIN_CELL_M, _near
 
 _NEAR_Q = 8
 """LEDs nearest a cell's centre tested against every member and pair (the hull is widest there)."""

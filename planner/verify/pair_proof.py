@@ -31,8 +31,9 @@ from scipy.spatial import cKDTree
 
 from planner.camera.model import Camera
 from planner.verify.envelope import Envelope, NotProvable, ceiling_distances
+from planner.verify.exclusion import NEAR, _near, _spindle_count  # the three-LED proof's spindle test
 from planner.verify.pair_cells import case_b_pairs
-from planner.verify.proof import NEAR, PAIR_BUDGET, _near, _spindle_count  # the three-LED proof's spindle test
+from planner.verify.proof import PAIR_BUDGET
 
 SLICES = (4, 4)
 """The envelope is cut into this many ranges of ceiling distance and of tilt; each range has its own sure

@@ -24,8 +24,9 @@ def site_triples(xy: np.ndarray, max_side_m: float) -> np.ndarray:
     return triples_of_pairs(cKDTree(xy).query_pairs(max_side_m, output_type="ndarray"), len(xy))
 
 
-def triples_of_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
-    """All triples ``i < j < k`` of ``n`` points whose three pairs are among ``pairs`` (M x 2, ``i < j``)."""
+def triples_of_pairs(pairs: np.ndarray, n: int, first: np.ndarray | None = None) -> np.ndarray:
+    """All triples ``i < j < k`` of ``n`` points whose three pairs are among ``pairs`` (M x 2, ``i < j``);
+    with ``first`` (n,) bool, only those whose ``i`` it marks (one tile's, :mod:`planner.verify.tiles`)."""
     if len(pairs) == 0:
         return np.empty((0, 3), dtype=np.int64)
     pairs = np.sort(np.asarray(pairs, dtype=np.int64), axis=1)
@@ -36,7 +37,7 @@ def triples_of_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
     # For every first vertex i, every two of its higher neighbours j < k; keep those with j-k a pair.
     out = []
     for d in np.unique(deg[deg >= 2]):
-        rows = np.flatnonzero(deg == d)
+        rows = np.flatnonzero((deg == d) & (True if first is None else first))
         a, b = np.triu_indices(int(d), 1)
         nb = pairs[start[rows][:, None] + np.arange(d), 1]  # (rows, d) neighbours, ascending
         j, k = nb[:, a].ravel(), nb[:, b].ravel()

@@ -9,8 +9,8 @@ from conftest import ROOT, exact_nearest, grid_xy
 from planner.camera.model import Camera
 from planner.layout.read import read_layout
 from planner.verify import pair_cells as pc
+from planner.verify.exclusion import _hull_depth
 from planner.verify.pair_proof import pair_envelope, possible_window_pairs, prove_pair_set
-from planner.verify.proof import _hull_depth
 from planner.verify.windows import sample_poses, working_area
 
 M = 0.06 + 1e-9

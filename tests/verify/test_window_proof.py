@@ -8,8 +8,10 @@ from hypothesis import strategies as st
 
 from conftest import exact_nearest, grid_xy, hex_xy, poisson_xy
 from planner.camera.model import Camera
+from planner.verify import exclusion as ex
 from planner.verify import proof as wp
 from planner.verify.envelope import Envelope, envelope
+from planner.verify.rivals import triples_of_pairs
 from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area
 
 ENV = Envelope(ceiling_m=2.5, near_m=1.0, far_m=2.0, tilt_rad=math.radians(40), inscribed_rad=math.radians(19.44),
@@ -27,7 +29,7 @@ def test_spindle_membership_matches_the_farthest_centre_found_by_brute_force():
         circle = np.stack([np.cos(ang), np.sin(ang)], 1)
         centres = np.vstack([a + rho * circle, b + rho * circle])  # the lens's extreme points lie on these arcs
         lens = centres[(np.linalg.norm(centres - a, axis=1) <= rho + 1e-12) & (np.linalg.norm(centres - b, axis=1) <= rho + 1e-12)]
-        got = bool(wp._in_spindle(a, b, x, radius, d))
+        got = bool(ex._in_spindle(a, b, x, radius, d))
         if len(lens) == 0:
             assert not got
             continue
@@ -42,7 +44,7 @@ def test_apex_cover_is_the_minimum_over_apex_positions_found_by_brute_force():
     for _ in range(60):
         a, b = np.zeros(2), np.array([rng.uniform(0.3, 3.0), 0.0])
         xs = np.column_stack([rng.uniform(-1.5, 4.5, 30), rng.uniform(-0.05, 0.3, 30)])
-        got = int(wp._apex_cover(a[None], b[None], xs[None], np.ones((1, 30), bool), ENV, 1.0)[0])
+        got = int(ex._apex_cover(a[None], b[None], xs[None], np.ones((1, 30), bool), ENV, 1.0)[0])
         L = b[0]
         s = np.linspace(L - ENV.axis_reach_m, ENV.axis_reach_m, 4001)
         apex = np.column_stack([s, np.full_like(s, rho)])
@@ -68,7 +70,7 @@ def test_hull_depth_matches_the_support_function_over_many_directions():
         q = rng.uniform(-1, 1, (1, 2))
         rho = np.array([rng.uniform(0.0, 0.5)])
         x = rng.uniform(-1.2, 1.2, (1, 5, 2))
-        got = wp._hull_depth(p, q, rho, x)[0]
+        got = ex._hull_depth(p, q, rho, x)[0]
         support = np.maximum((dirs @ p[0].T).max(axis=1), dirs @ q[0] + rho[0])
         brute = (support[:, None] - dirs @ x[0].T).min(axis=0)
         assert np.allclose(got, brute, atol=2e-3)
@@ -140,7 +142,7 @@ def test_on_larger_sites_where_the_tests_exclude_most_triples_no_exact_window_is
         installed = drawn + np.column_stack([shift, np.zeros(len(xy))])
         radii = np.full(len(xy), 0.1)
         triangles = wp.possible_windows(drawn, radii, envelope(cam, drawn, radii, 0.03), budget=10**7, pair_budget=10**7)
-        everything = wp.triples_of_pairs(np.column_stack(np.triu_indices(len(xy), 1)), len(xy))
+        everything = triples_of_pairs(np.column_stack(np.triu_indices(len(xy), 1)), len(xy))
         assert len(triangles) < len(everything)  # the tests do exclude
         proved = {tuple(t) for t in triangles.tolist()}
         windows = set()
