@@ -21,7 +21,7 @@ from planner.budget import plan_sample_per_m2
 from planner.camera import Camera
 from planner.codes.assignment import assign_paper
 from planner.codes.check_bits import check_code
-from planner.codes.schemes import assign_unique, assign_window
+from planner.codes.schemes import assign_unique, assign_window, window_set_bound
 from planner.defaults import (
     ACCELEROMETER_SIGMA_DEG,
     INSTALL_TOLERANCE_M,
@@ -232,6 +232,9 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         else:
             chosen = options.scheme
         assignment, verification = made[chosen]
+        counted = window_set_bound(proof, xyz, made.get("window", (None, None))[0]) if proof is not None else None
+        if counted is not None:  # the counting bound of the window set, proved or sampled, beside the width
+            assignment = replace(assignment, detail={**assignment.detail, "window_set": counted})
         considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),
                           "window_set_conflicts": (len(v.window_set.conflicts) if v and v.window_set else None)}
                       for k, (a, v) in made.items()}
