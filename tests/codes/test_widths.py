@@ -1,0 +1,123 @@
+"""Issue 34: a width that leaves conflicts leads to one bit more (with reuse), not to one ID per
+luminaire, and the plan gives the counting bound of its window set beside the width."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, grid_xy
+from planner.camera import Camera
+from planner.codes.assignment import Assignment, bits_for
+from planner.codes.rivals import find_rivals
+from planner.codes.schemes import proved_labels, window_set_bound
+from planner.verify.proof import Proof, possible_windows, prove_window_set
+from planner.verify.windows import CONGRUENCE_TOLERANCE_M
+
+TOL = CONGRUENCE_TOLERANCE_M
+
+
+def _site(xy: np.ndarray, height_m: float = 2.5) -> tuple[np.ndarray, np.ndarray]:
+    return np.column_stack([xy, np.full(len(xy), height_m)]), np.full(len(xy), 0.1)
+
+
+def _counted_bound(windows: np.ndarray, xyz: np.ndarray) -> int:
+    """The counting bound by its definition: the largest set of exactly congruent windows (sides
+    counter-clockwise, to 1 um, in any rotation) needs ``K^3`` label triples (``(K^3 + 2K) / 3``
+    when equilateral); the fewest such K."""
+    classes: dict[tuple, int] = {}
+    equilateral: dict[tuple, bool] = {}
+    for t in windows.tolist():
+        p = xyz[t, :2]
+        (ax, ay), (bx, by) = p[1] - p[0], p[2] - p[0]
+        if ax * by - ay * bx < 0:
+            t = [t[0], t[2], t[1]]
+            p = xyz[t, :2]
+        s = tuple(round(float(np.hypot(*(p[(j + 1) % 3] - p[j]))) * 1e6) for j in range(3))
+        key = min(s, s[1:] + s[:1], s[2:] + s[:2])
+        classes[key] = classes.get(key, 0) + 1
+        equilateral[key] = s[0] == s[1] == s[2]
+    k = 1
+    while any((k ** 3 + 2 * k) // 3 < c if equilateral[key] else k ** 3 < c for key, c in classes.items()):
+        k += 1
+    return k
+
+
+def test_a_width_left_with_conflicts_leads_to_one_bit_more_with_reuse():
+    """On a proved 3 x 6 grid the counting bound's width (2 bits) leaves conflicts; its best labels
+    seed 3 bits, which are met: still reuse (5 bits would be one ID per luminaire), and the labels
+    pass the independent check against every proved window."""
+    xyz, radii = _site(grid_xy(3, 6, 0.5, 0.5))
+    proof = prove_window_set(xyz, radii, Camera(), 0.03)
+    assert proof.triangles is not None
+    got = proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=math.inf)
+    tried, left = got.detail["widths_tried"], got.detail["conflicts_left"]
+    assert tried[0] == got.bound_bits == bits_for(_counted_bound(proof.triangles, xyz))
+    assert left[0] > 0 and left[-1] == 0 and len(tried) >= 2 and tried == list(range(tried[0], tried[0] + len(tried)))
+    assert got.labels is not None and got.bits == tried[-1] < bits_for(len(xyz))
+    assert len(np.unique(got.labels)) < len(xyz) and got.labels.max() < 2 ** got.bits
+    assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
+
+
+def test_skipped_widths_are_climbed_when_no_other_width_is_met():
+    """With every width skipped as hopeless at first, the search still climbs them (from the bound)
+    and never answers with one ID per luminaire."""
+    xyz, radii = _site(grid_xy(3, 6, 0.5, 0.5))
+    proof = prove_window_set(xyz, radii, Camera(), 0.03)
+    assert proof.triangles is not None
+    got = proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=-1.0)  # every width "hopeless"
+    assert got.labels is not None and got.bits < bits_for(len(xyz))
+    assert got.detail["widths_tried"][0] == got.bound_bits
+    assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
+
+
+def test_the_plan_gives_the_counting_bound_of_its_proved_window_set(tmp_path, capsys):
+    """grid-32: plan.yaml's ``code.window_set`` says proved, with the proved set's size and counting
+    bound (recounted here), and the summary prints it beside the width."""
+    import yaml
+
+    from planner.cli.plan import main
+
+    out = tmp_path / "out"
+    assert main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-map", "--no-firmware", "--no-report",
+                 "--error-poses-per-m2", "0"]) == 0
+    text = capsys.readouterr().out
+    code = yaml.safe_load((out / "plan.yaml").read_text())["code"]
+    xyz = np.array([[e["x"], e["y"], e["z"]] for e in yaml.safe_load((out / "plan.yaml").read_text())["luminaires"]])
+    proof = prove_window_set(xyz, np.full(len(xyz), 0.1), Camera(), 0.03)
+    assert proof.triangles is not None
+    labels = _counted_bound(proof.triangles, xyz)
+    assert code["window_set"] == {"set": "proved", "windows": len(proof.triangles), "lower_bound_labels": labels,
+                                  "lower_bound_bits": bits_for(labels)}
+    assert code["bits"] <= bits_for(labels) + 2 and code["bits"] < code["naive_bits"]
+    assert f"; {bits_for(labels)} for the {len(proof.triangles):,} proved windows)" in text
+    ids = np.array([e["id"] for e in yaml.safe_load((out / "plan.yaml").read_text())["luminaires"]])
+    assert find_rivals(proof.triangles, xyz, ids, TOL) == []
+
+
+def test_without_a_proof_the_bound_is_called_sampled():
+    xyz, _ = _site(grid_xy(2, 2))
+    a = Assignment("window", np.arange(1, 5), np.zeros(4, np.int64), 2, 2, 1, "test",
+                   {"windows": 7, "lower_bound_labels": 2})
+    got = window_set_bound(Proof(None, "over budget", None), xyz, a)
+    assert got == {"set": "sampled", "windows": 7, "lower_bound_labels": 2, "lower_bound_bits": 1}
+    assert window_set_bound(Proof(None, "over budget", None), xyz, None) is None
+    assert json.dumps(got)  # plain data for plan.yaml and --json
+
+
+@pytest.mark.slow
+def test_the_1024_lattice_is_labelled_within_two_bits_of_its_0cm_window_set():
+    """The 32 x 32 lattice against its window set at 0 cm install tolerance (the proof's budgets lifted:
+    the site is over them today): reuse, within 2 bits of the counting bound, independently checked."""
+    from sites import square_lattice
+
+    from planner.verify.envelope import envelope
+
+    lay = square_lattice(1024)
+    xyz, radii = lay.xyz, np.array([lum.radius for lum in lay.luminaires])
+    windows = possible_windows(xyz, radii, envelope(Camera(), xyz, radii, 0.0), budget=10 ** 7, pair_budget=10 ** 7)
+    got = proved_labels(windows, xyz, TOL)
+    assert got.labels is not None and got.bits <= got.bound_bits + 2 < bits_for(1024)
+    assert got.bound_bits == bits_for(_counted_bound(windows, xyz))
+    assert find_rivals(windows, xyz, got.labels + 1, TOL) == []
