@@ -234,8 +234,8 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     if labels is None and skipped:  # every width left conflicts: the skipped ones too, each seeding the next
         labels, k = climb(widths[widths.index(skipped[0]):], skip=False)
     detail = {"windows": len(triangles), **size, "widths_tried": tried, "conflicts_left": left, "steps": int(steps_of),
-              "max_steps": max_steps, "labels": int(k), "lower_bound_labels": int(bound)}
-    return ProvedLabels(labels, k, bound, detail)
+              "max_steps": max_steps, "labels": int(k)}
+    return ProvedLabels(labels, k, int(bound), detail)
 
 
 def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
@@ -253,7 +253,7 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
     if seed not in observations:
         observations[seed] = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
     check = classify(observations[seed], ids)
-    detail = {**got.detail, "optimal": got.bits == got.bound_bits}
+    detail = {**got.detail, "optimal": got.bits == got.bound_bits, "lower_bound_labels": got.bound}  # in this order
     return Assignment("window", ids, tile_regions(xyz[:, :2], graph, got.k), got.bits, bits_for(n), got.bound_bits,
                       method, detail), check
 
