@@ -348,9 +348,10 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         passes += 1
         if passes <= WIDEN_AFTER:
             new_code, labels, k, problem = solve((labels, k))
-        elif bits_for(max(k, 2)) + 1 < bits_for(n):  # repairs at this width keep making new rivals: one bit more,
-            # from these labels (labels of the wider width too) or afresh
-            new_code, labels, k, problem = solve((labels, 2 * k), min_bits=bits_for(max(k, 2)) + 1)
+        elif bits_for(max(k, 2)) + 1 < bits_for(n):  # repairs at this width keep making new rivals: one bit
+            # more, afresh (measured on the hexagonal site, rivals lazy: labels carried up from the width
+            # below crowd into half the labels, and rivals the search does not know yet follow them)
+            new_code, labels, k, problem = solve(min_bits=bits_for(max(k, 2)) + 1)
             widths.append(bits_for(max(k, 2)))
             passes = 0
         else:  # no reuse left to try
