@@ -63,6 +63,10 @@ def main(argv: list[str] | None = None) -> int:
             t1 = time.perf_counter()
             got = proved_labels(windows, xyz, CONGRUENCE_TOLERANCE_M, seed=args.seed)
             t2 = time.perf_counter()
+            if got is None:
+                print(f"{name:>12} {tol * 100:3.0f} cm: {len(xyz)} luminaires, {len(windows):,} windows: over the "
+                      f"budgets of the pairs and the shape groups ({t2 - t1:.1f} s)", flush=True)
+                continue
             ids = (got.labels if got.labels is not None else np.arange(len(xyz))) + 1
             assert find_rivals(windows, xyz, ids, CONGRUENCE_TOLERANCE_M) == []
             rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

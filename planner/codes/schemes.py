@@ -166,7 +166,7 @@ class ProvedLabels:
 
 def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *, seed: int = 0,
                   matches: Callable[[], np.ndarray] | None = None,
-                  hopeless_per_luminaire: float | None = None) -> ProvedLabels:
+                  hopeless_per_luminaire: float | None = None) -> ProvedLabels | None:
     """The fewest bits whose labels keep every window of a complete set apart from every triple of the site.
 
     Every pair that must differ is listed (:mod:`planner.codes.pairwise`) or, where they are over
@@ -178,7 +178,8 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     width's conflicts lead to one bit more, not to one ID per luminaire. Widths whose random labels
     leave more conflicts than ``hopeless_per_luminaire`` per luminaire (default
     :data:`HOPELESS_PER_LUMINAIRE`, :data:`HOPELESS_IN_GROUPS_PER_LUMINAIRE` for groups) are skipped
-    at first; if no other width is met they are climbed too, from the first skipped.
+    at first; if no other width is met they are climbed too, from the first skipped. None when
+    neither the pairs nor the groups are within their budgets (:data:`planner.codes.classes.LINK_BUDGET`).
     """
     n = len(xyz)
     pairs = pairwise.alike_pairs(triangles, xyz, tolerance_m)
@@ -190,6 +191,8 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
             return index
     else:
         groups = classes.shape_groups(triangles, xyz, tolerance_m, matches() if matches else None)
+        if groups is None:  # neither the pairs nor the groups fit
+            return None
         per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
                                                                 "grouped_triples": len(groups.triples)}
 
@@ -240,12 +243,14 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
 
 def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
                    proof: Proof, *, seed: int, per_m2: float, tolerance_m: float,
-                   observations: dict) -> tuple[Assignment, Verification]:
+                   observations: dict) -> tuple[Assignment, Verification] | None:
     """The window scheme against a complete window set (:func:`proved_labels`): no sample, key
-    cells or repair rounds are needed."""
+    cells or repair rounds are needed. None when the set is too large to design against."""
     assert proof.triangles is not None
     n = len(xyz)
     got = proved_labels(proof.triangles, xyz, tolerance_m, seed=seed, matches=lambda: proof.shape_matches(tolerance_m))
+    if got is None:
+        return None
     labels, method = got.labels, f"min-conflicts against the {len(proof.triangles):,} proved windows"
     if labels is None:
         labels, method = np.arange(n, dtype=np.int64), "distinct labels (no shorter labels found)"
@@ -296,8 +301,10 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     """
     seen = {} if observations is None else observations
     if proof is not None and proof.complete:
-        return _assign_proved(xyz, radii, outline, graph, camera, proof, seed=seed,
+        made = _assign_proved(xyz, radii, outline, graph, camera, proof, seed=seed,
                               per_m2=per_m2, tolerance_m=tolerance_m, observations=seen)
+        if made is not None:
+            return made  # else designed as below, and judged on the proved set by the caller
 
     def checked(s: int, labels: np.ndarray) -> Verification:
         if s not in seen:

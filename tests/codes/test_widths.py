@@ -52,6 +52,7 @@ def test_a_width_left_with_conflicts_leads_to_one_bit_more_with_reuse():
     proof = prove_window_set(xyz, radii, Camera(), 0.03)
     assert proof.triangles is not None
     got = proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=math.inf)
+    assert got is not None
     tried, left = got.detail["widths_tried"], got.detail["conflicts_left"]
     assert tried[0] == got.bound_bits == bits_for(_counted_bound(proof.triangles, xyz))
     assert left[0] > 0 and left[-1] == 0 and len(tried) >= 2 and tried == list(range(tried[0], tried[0] + len(tried)))
@@ -67,6 +68,7 @@ def test_skipped_widths_are_climbed_when_no_other_width_is_met():
     proof = prove_window_set(xyz, radii, Camera(), 0.03)
     assert proof.triangles is not None
     got = proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=-1.0)  # every width "hopeless"
+    assert got is not None
     assert got.labels is not None and got.bits < bits_for(len(xyz))
     assert got.detail["widths_tried"][0] == got.bound_bits
     assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
@@ -118,6 +120,6 @@ def test_the_1024_lattice_is_labelled_within_two_bits_of_its_0cm_window_set():
     xyz, radii = lay.xyz, np.array([lum.radius for lum in lay.luminaires])
     windows = possible_windows(xyz, radii, envelope(Camera(), xyz, radii, 0.0), budget=10 ** 7, pair_budget=10 ** 7)
     got = proved_labels(windows, xyz, TOL)
-    assert got.labels is not None and got.bits <= got.bound_bits + 2 < bits_for(1024)
+    assert got is not None and got.labels is not None and got.bits <= got.bound_bits + 2 < bits_for(1024)
     assert got.bound_bits == bits_for(_counted_bound(windows, xyz))
     assert find_rivals(windows, xyz, got.labels + 1, TOL) == []
