@@ -182,7 +182,7 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     neither the pairs nor the groups are within their budgets (:data:`planner.codes.classes.LINK_BUDGET`).
     """
     n = len(xyz)
-    pairs = pairwise.alike_pairs(triangles, xyz, tolerance_m)
+    pairs = pairwise.alike_pairs(triangles, xyz, tolerance_m, budget=pairwise.ALIKE_BUDGET)
     if pairs is not None:
         index = pairwise.Index(n, pairs)
         per, size = HOPELESS_PER_LUMINAIRE, {"alike_pairs": len(pairs)}
@@ -317,6 +317,9 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     design = design_windows(xyz, radii, outline, camera, per_m2=design_per_m2(per_m2, floor_m2), seed=seed + 1,
                             tolerance_m=tolerance_m)
     windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
+    if proof is not None and proof.triangles is not None:  # proved, but too large to design against directly
+        windows = np.unique(np.sort(np.vstack([windows, proof.triangles]), axis=1), axis=0)
+        bound = max(bound, longest_side(proof.triangles, xyz))
     others, first = None, windows
     full = _keyed(windows, xyz, tolerance_m)
     lazy = len(full[0]) > MAX_READINGS

@@ -74,6 +74,27 @@ def test_skipped_widths_are_climbed_when_no_other_width_is_met():
     assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
 
 
+def test_a_proved_set_over_every_budget_is_still_designed_against(monkeypatch):
+    """When neither the alike pairs nor the shape groups fit (the hexagonal site's 0 cm set: memory ran
+    out past 17 GB), the window scheme designs by cells and repairs against the proved triangles too, so
+    no proved window reads like another triple; it is not left to the sampled windows alone."""
+    from planner.codes import classes, pairwise
+    from planner.codes.schemes import assign_window
+    from planner.graph import build_graph
+
+    monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 0)
+    monkeypatch.setattr(classes, "LINK_BUDGET", 0)
+    xy = grid_xy(3, 6, 0.5, 0.5)
+    xyz, radii = _site(xy)
+    proof = prove_window_set(xyz, radii, Camera(), 0.03)
+    assert proof.triangles is not None and proved_labels(proof.triangles, xyz, TOL) is None
+    outline = ((-0.5, -0.5), (3.0, -0.5), (3.0, 1.5), (-0.5, 1.5))
+    a, _ = assign_window(xyz, radii, outline, build_graph(xy), Camera(), proof=proof)
+    assert "proved" not in a.method and a.bits < bits_for(len(xyz))
+    assert a.detail["windows"] >= len(proof.triangles)
+    assert find_rivals(proof.triangles, xyz, a.ids, TOL) == []
+
+
 def test_the_plan_gives_the_counting_bound_of_its_proved_window_set(tmp_path, capsys):
     """grid-32: plan.yaml's ``code.window_set`` says proved, with the proved set's size and counting
     bound (recounted here), and the summary prints it beside the width."""
