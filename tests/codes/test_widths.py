@@ -144,3 +144,21 @@ def test_the_1024_lattice_is_labelled_within_two_bits_of_its_0cm_window_set():
     assert got is not None and got.labels is not None and got.bits <= got.bound_bits + 2 < bits_for(1024)
     assert got.bound_bits == bits_for(_counted_bound(windows, xyz))
     assert find_rivals(windows, xyz, got.labels + 1, TOL) == []
+
+
+def test_the_test_sites_are_what_issue_34_describes():
+    """The hexagonal site: a 0.7 m triangular lattice, 3 m ceiling, every luminaire within 3 cm of its
+    lattice place, the same as ``layouts/hex-1088.yaml``; the jittered site 2,040; the lattice 1,024."""
+    from scipy.spatial import cKDTree
+    from sites import hexagonal_site, hexagonal_xy, jittered_site, square_lattice
+
+    from planner.pipeline import read_layout
+
+    hexa = hexagonal_site()
+    exact = hexagonal_xy(jitter_m=0.0)
+    moved = hexagonal_xy()
+    assert len(hexa.luminaires) == 1088 and {lum.z for lum in hexa.luminaires} == {3.0}
+    assert np.hypot(*(moved - exact).T).max() <= 0.03 + 1e-12
+    assert np.allclose(cKDTree(exact).query(exact, k=2)[0][:, 1], 0.7)
+    assert np.abs(read_layout(ROOT / "layouts" / "hex-1088.yaml", None).xyz - hexa.xyz).max() <= 1e-4
+    assert len(jittered_site().luminaires) == 2040 and len(square_lattice().luminaires) == 1024
