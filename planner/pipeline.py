@@ -232,7 +232,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions()) -> Plan:
         else:
             chosen = options.scheme
         assignment, verification = made[chosen]
-        counted = window_set_bound(proof, xyz, made.get("window", (None, None))[0]) if proof is not None else None
+        counted = (window_set_bound(proof, xyz, made.get("window", (None, None))[0], options.tolerance_m)
+                   if proof is not None else None)
         if counted is not None:  # the counting bound of the window set, proved or sampled, beside the width
             assignment = replace(assignment, detail={**assignment.detail, "window_set": counted})
         considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),

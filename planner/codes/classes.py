@@ -113,6 +113,29 @@ def clique_lower_bound(windows: np.ndarray, xyz: np.ndarray) -> int:
     return lower_bound_labels(shape, symmetric)
 
 
+def near_lower_bound(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> int:
+    """Fewest labels any valid labelling needs, by counting windows of *nearly* one shape: windows whose
+    sides (counter-clockwise, in some rotation) fall in one cube of side ``tolerance_m`` differ by less
+    than the tolerance side by side, so they all read alike under equal labels and each needs its own
+    label triple: ``K^3`` must reach the most distinct windows in one cube (cubes on two grids, the second
+    shifted half a side). On irregular sites no two windows are exactly congruent and
+    :func:`clique_lower_bound` says 1; this one still counts."""
+    win = _distinct_ccw(windows, xyz)
+    if len(win) == 0 or tolerance_m <= 0:
+        return 1
+    turns = np.concatenate([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)]) / tolerance_m
+    ids = np.tile(np.arange(len(win)), 3)
+    most = 1
+    for shift in (0.0, 0.5):
+        cells = np.floor(turns + shift).astype(np.int64)
+        rows = np.unique(np.column_stack([cells, ids]), axis=0)  # a window once per cube
+        most = max(most, int(np.unique(rows[:, :3], axis=0, return_counts=True)[1].max()))
+    k = 1
+    while k ** 3 < most:
+        k += 1
+    return k
+
+
 def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Join classes whose shapes lie within the tolerance in some rotation; returns each class's
     group, the further turn that brings it into its group's order (first found wins), and

@@ -147,7 +147,8 @@ class ProvedLabels:
 
     ``labels`` (N,) 0..``k``-1, or None when no width below one ID per luminaire was met;
     ``bound`` the counting lower bound on the labels of this set
-    (:func:`planner.codes.classes.clique_lower_bound`); ``detail`` what ``plan.yaml`` records.
+    (:func:`planner.codes.classes.clique_lower_bound`, :func:`~planner.codes.classes.near_lower_bound`);
+    ``detail`` what ``plan.yaml`` records.
     """
 
     labels: np.ndarray | None
@@ -200,7 +201,8 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
             return classes.ClassIndex(n, groups, K) if classes.ClassIndex.fits(groups, K) else None
     hopeless = (per if hopeless_per_luminaire is None else hopeless_per_luminaire) * n
     unique_bits = bits_for(n)
-    bound = classes.clique_lower_bound(triangles, xyz)  # no fewer labels can work: not tried
+    bound = max(classes.clique_lower_bound(triangles, xyz),  # no fewer labels can work: not tried
+                classes.near_lower_bound(triangles, xyz, tolerance_m))
     max_steps = max(1000, PROVED_STEPS_PER_LUMINAIRE * n)
     tried: list[int] = []
     left: list[int] = []
@@ -263,15 +265,18 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
                       method, detail), check
 
 
-def window_set_bound(proof: Proof, xyz: np.ndarray, window: Assignment | None) -> dict | None:
+def window_set_bound(proof: Proof, xyz: np.ndarray, window: Assignment | None,
+                     tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> dict | None:
     """What ``plan.yaml`` says beside the width (``code.window_set``): whether the window set the IDs
     answer to is proved or sampled, its size and its counting lower bound (labels and bits).
 
-    Proved: :func:`planner.codes.classes.clique_lower_bound` of the proved set, whatever the scheme.
+    Proved: the larger of :func:`planner.codes.classes.clique_lower_bound` and
+    :func:`~planner.codes.classes.near_lower_bound` of the proved set, whatever the scheme.
     Otherwise the window scheme's own bound over the windows it protected (``window``), or None
     when it was not made."""
     if proof.triangles is not None:
-        labels = classes.clique_lower_bound(proof.triangles, xyz)
+        labels = max(classes.clique_lower_bound(proof.triangles, xyz),
+                     classes.near_lower_bound(proof.triangles, xyz, tolerance_m))
         return {"set": "proved", "windows": len(proof.triangles), "lower_bound_labels": int(labels),
                 "lower_bound_bits": bits_for(max(labels, 2))}
     if window is None or "lower_bound_labels" not in window.detail:

@@ -162,3 +162,34 @@ def test_the_test_sites_are_what_issue_34_describes():
     assert np.allclose(cKDTree(exact).query(exact, k=2)[0][:, 1], 0.7)
     assert np.abs(read_layout(ROOT / "layouts" / "hex-1088.yaml", None).xyz - hexa.xyz).max() <= 1e-4
     assert len(jittered_site().luminaires) == 2040 and len(square_lattice().luminaires) == 1024
+
+
+def test_the_near_shape_bound_counts_on_irregular_sites_and_is_met_by_no_fewer_labels():
+    """A 3 x 6 grid moved up to 3 cm: no two windows are exactly congruent (the exact count says 1 label),
+    but windows within one tolerance cube all read alike, so the bound counts them; every window of the
+    largest cube reads like every other (checked pair by pair), and the labels found use no fewer."""
+    from planner.codes.classes import clique_lower_bound, near_lower_bound
+    from planner.codes.rivals import counter_clockwise, sides
+
+    xy = grid_xy(3, 6, 0.5, 0.5) + np.random.default_rng(3).uniform(-0.02, 0.02, (18, 2))
+    xyz, radii = _site(xy)
+    proof = prove_window_set(xyz, radii, Camera(), 0.03)
+    assert proof.triangles is not None
+    k = near_lower_bound(proof.triangles, xyz, TOL)
+    assert clique_lower_bound(proof.triangles, xyz) == 1 < k and near_lower_bound(proof.triangles, xyz, 0.0) == 1
+    win = counter_clockwise(proof.triangles, xyz[:, :2])
+    turns = np.stack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)], 1)  # (M, 3 turns, 3 sides)
+    best: list[tuple[int, int]] = []
+    for shift in (0.0, 0.5):
+        cubes: dict[tuple, set] = {}
+        for m in range(len(win)):
+            for r in range(3):
+                cubes.setdefault(tuple(np.floor(turns[m, r] / TOL + shift).astype(int)), set()).add((m, r))
+        best = max([best, *map(sorted, cubes.values())], key=len)
+    assert (k - 1) ** 3 < len({m for m, _ in best}) <= k ** 3 * 3
+    for (m1, r1) in best:
+        for (m2, r2) in best:
+            assert np.abs(turns[m1, r1] - turns[m2, r2]).max() < TOL  # read alike under equal labels
+    got = proved_labels(proof.triangles, xyz, TOL)
+    assert got is not None and got.labels is not None and got.bound >= k
+    assert len(np.unique(got.labels)) >= k and find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
