@@ -196,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         "bits": a.bits,
         "naive_bits": a.naive_bits,
         "lower_bound_bits": a.lower_bound_bits,
+        "window_set": a.detail.get("window_set"),
         "efficiency": round(a.efficiency, 4),
         "regions": int(a.regions.max()) + 1,
         "max_id": a.max_id,
@@ -244,6 +245,11 @@ def main(argv: list[str] | None = None) -> int:
     return ExitCode.CHECK_FAILED if unusable and not args.allow_unusable else ExitCode.OK
 
 
+def _set_bound(w: dict | None) -> str:
+    """The counting bound of the window set beside the width, saying whether the set is proved or sampled."""
+    return "" if not w else f"; {w['lower_bound_bits']} for the {w['windows']:,} {w['set']} windows"
+
+
 def _print_summary(s: dict) -> None:
     from planner.report.content import length_text
 
@@ -254,7 +260,7 @@ def _print_summary(s: dict) -> None:
     shape = "bipartite" if s["bipartite"] else f"NOT bipartite (odd cycle {' - '.join(s['odd_cycle'])})"
     print(f"  graph    {s['neighbour_pairs']} neighbour pairs, {shape}")
     print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bit{'s' if s['bits'] != 1 else ''} "
-          f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}), "
+          f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}{_set_bound(s.get('window_set'))}), "
           f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
           f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
     if s["check_distance"] > 1:

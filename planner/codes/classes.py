@@ -26,6 +26,10 @@ from scipy.spatial import cKDTree
 
 from planner.verify.rivals import counter_clockwise, shape_matches, sides
 
+LINK_BUDGET = 20_000_000
+"""Most (class, class within the tolerance) links joined into groups: an irregular site whose pairs are
+over :data:`planner.codes.pairwise.ALIKE_BUDGET` has one class per triple, each near thousands (the
+hexagonal site of issue 34 at 0 cm: memory ran out past 17 GB), so it gets no groups."""
 TABLE_BUDGET = 64_000_000
 """Most (group, label triple) counters kept (two int16 tables, 4 bytes per counter)."""
 SHAPE_RESOLUTION_M = 1e-6
@@ -64,9 +68,11 @@ def _turn_ranks(triples: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, np.nd
     return vectors, rank.reshape(-1, 3)
 
 
-def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, matches: np.ndarray | None = None) -> Groups:
+def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
+                 matches: np.ndarray | None = None) -> Groups | None:
     """Group the windows and every triple of the site within the tolerance of one of them (``matches``,
-    if already found: :func:`planner.verify.rivals.shape_matches` of these windows)."""
+    if already found: :func:`planner.verify.rivals.shape_matches` of these windows); None when joining
+    the classes would take more than :data:`LINK_BUDGET` links."""
     win = _distinct_ccw(windows, xyz)
     everything = np.vstack([win, shape_matches(win, xyz, tolerance_m) if matches is None else matches])
     key = np.sort(everything, axis=1)
@@ -78,7 +84,10 @@ def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, match
     cls = rank[np.arange(len(rank)), turn]
     used, cls = np.unique(cls, return_inverse=True)
     shape = vectors[used] * SHAPE_RESOLUTION_M  # (C, 3) each class's sides in its order
-    group, turn_by, spin = _merge(shape, tolerance_m)
+    merged = _merge(shape, tolerance_m)
+    if merged is None:
+        return None
+    group, turn_by, spin = merged
     total = (turn + turn_by[cls]) % 3
     turned = np.flatnonzero(spin[cls])  # entered again in the two other turns
     rows = np.concatenate([np.arange(len(triples)), turned, turned])
@@ -104,15 +113,44 @@ def clique_lower_bound(windows: np.ndarray, xyz: np.ndarray) -> int:
     return lower_bound_labels(shape, symmetric)
 
 
-def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def near_lower_bound(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> int:
+    """Fewest labels any valid labelling needs, by counting windows of *nearly* one shape: windows whose
+    sides (counter-clockwise, in some rotation) fall in one cube of side ``tolerance_m`` differ by less
+    than the tolerance side by side, so they all read alike under equal labels and each needs its own
+    label triple: ``K^3`` must reach the most distinct windows in one cube (cubes on two grids, the second
+    shifted half a side). On irregular sites no two windows are exactly congruent and
+    :func:`clique_lower_bound` says 1; this one still counts."""
+    win = _distinct_ccw(windows, xyz)
+    if len(win) == 0 or tolerance_m <= 0:
+        return 1
+    turns = np.concatenate([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)]) / tolerance_m
+    ids = np.tile(np.arange(len(win)), 3)
+    most = 1
+    for shift in (0.0, 0.5):
+        cells = np.floor(turns + shift).astype(np.int64)
+        rows = np.unique(np.column_stack([cells, ids]), axis=0)  # a window once per cube
+        most = max(most, int(np.unique(rows[:, :3], axis=0, return_counts=True)[1].max()))
+    k = 1
+    while k ** 3 < most:
+        k += 1
+    return k
+
+
+def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Join classes whose shapes lie within the tolerance in some rotation; returns each class's
     group, the further turn that brings it into its group's order (first found wins), and
-    whether it must be entered in every turn (a match the group order does not cover)."""
+    whether it must be entered in every turn (a match the group order does not cover); None when
+    that would take more than :data:`LINK_BUDGET` links."""
     c = len(shape)
     tree = cKDTree(shape)
     links: list[list[tuple[int, int]]] = [[] for _ in range(c)]
     spin = np.zeros(c, dtype=bool)
     reach = tolerance_m + 2 * SHAPE_RESOLUTION_M  # class shapes are rounded: reach a little further
+    every = max(1, c // 2000)  # links estimated from every so many classes first: counting them all is slow
+    for step in sorted({every, 1}, reverse=True):
+        if step * sum(int(tree.query_ball_point(np.roll(shape[::step], -r, axis=1), reach, p=np.inf,
+                                                return_length=True).sum()) for r in range(3)) > LINK_BUDGET:
+            return None
     for r in range(3):
         for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), reach, p=np.inf)):
             for v in hits:

@@ -192,31 +192,37 @@ class ConflictIndex(Protocol):
 def search(index: ConflictIndex, K: int, *, seed: int = 0, max_steps: int = 20_000,
            stall_steps: int = STALL_STEPS) -> tuple[np.ndarray | None, int]:
     """Labels 0..K-1 of the ``index.n`` luminaires with no conflict in the index (or None),
-    and the steps taken.
-
-    Min-conflicts: take a unit in conflict, move the one of its luminaires whose best other
-    label removes most conflicts (ties and, with probability ``NOISE``, the luminaire at
-    random), never back to a label left within ``TABU_STEPS`` steps. From seeded random
-    labels; at most ``max_steps`` moves, and none once ``stall_steps`` moves have
-    not lowered the fewest conflicts seen. ``index.cost`` differences are exact, so the
-    count of conflicts is kept by them.
-    """
+    and the steps taken: :func:`search_from` seeded random labels."""
     rng = np.random.default_rng([seed, K])
     lab = rng.integers(0, K, index.n).astype(np.int64)
+    left, steps = search_from(index, K, lab, rng=rng, max_steps=max_steps, stall_steps=stall_steps)
+    return (lab if left == 0 else None), steps
+
+
+def search_from(index: ConflictIndex, K: int, lab: np.ndarray, *, rng: np.random.Generator, max_steps: int = 20_000,
+                stall_steps: int = STALL_STEPS) -> tuple[int, int]:
+    """Min-conflicts from ``lab`` (labels 0..K-1, changed in place to the best labels seen):
+    returns the conflicts left under them and the steps taken.
+
+    Take a unit in conflict, move the one of its luminaires whose best other
+    label removes most conflicts (ties and, with probability ``NOISE``, the luminaire at
+    random), never back to a label left within ``TABU_STEPS`` steps. At most ``max_steps``
+    moves, and none once ``stall_steps`` moves have not lowered the fewest conflicts seen.
+    ``index.cost`` differences are exact, so the count of conflicts is kept by them.
+    """
     total, pool = index.begin(lab)  # the pool: every unit in conflict, and some no longer (dropped when drawn)
-    if total == 0:
-        return lab, 0
-    if K < 2:
-        return None, 0
+    if total == 0 or K < 2:
+        return total, 0
     tabu: dict[tuple[int, int], int] = {}
-    fewest, since = total, 0
+    fewest, since, best = total, 0, lab.copy()
+    step = 0
     for step in range(max_steps):
         if total == 0:
-            return lab, step
+            return 0, step
         if total < fewest:
-            fewest, since = total, step
+            fewest, since, best = total, step, lab.copy()
         elif step - since > stall_steps:
-            return None, step
+            break
         while True:  # a unit in conflict, uniformly: draw from the pool, dropping stale entries
             at = int(rng.integers(len(pool)))
             unit = pool[at]
@@ -227,7 +233,7 @@ def search(index: ConflictIndex, K: int, *, seed: int = 0, max_steps: int = 20_0
         cands = index.holders(unit, lab)
         if rng.random() < NOISE:
             cands = cands[[int(rng.integers(len(cands)))]]
-        best: tuple[float, int, int] | None = None
+        choice: tuple[float, int, int] | None = None
         for i in cands.tolist():
             c = index.cost(i, lab, K).astype(float)
             c = c - c[lab[i]]
@@ -236,10 +242,10 @@ def search(index: ConflictIndex, K: int, *, seed: int = 0, max_steps: int = 20_0
                 if until > step:
                     c[k] = np.inf
             k = int(np.argmin(c + rng.random(K) * 1e-3))
-            if best is None or c[k] < best[0]:
-                best = (c[k], i, k)
-        assert best is not None
-        delta, i, k = best
+            if choice is None or c[k] < choice[0]:
+                choice = (c[k], i, k)
+        assert choice is not None
+        delta, i, k = choice
         if not np.isfinite(delta):
             continue
         old = int(lab[i])
@@ -249,4 +255,10 @@ def search(index: ConflictIndex, K: int, *, seed: int = 0, max_steps: int = 20_0
         pool.extend(index.moved(i, old, lab))
         if len(tabu) > 4 * TABU_STEPS:
             tabu = {key: u for key, u in tabu.items() if u > step}
-    return (lab if total == 0 else None), max_steps
+    else:
+        step = max_steps
+    if total == 0:
+        return 0, step
+    lab[:] = best
+    index.begin(lab)  # the index's live counts follow the labels
+    return fewest, step

@@ -12,11 +12,14 @@ other triple of the site that could read like a window (:mod:`planner.verify.riv
 passive triple, which no window may read like. The result
 is checked on ``CHECK_SEEDS`` independent pose samples at the verification
 density; windows that only those samples found are added and the IDs repaired,
-up to ``REPAIR_ROUNDS`` passes. The last check sample (seed
-``seed``) is the verification reported in the plan.
+up to ``WIDEN_AFTER`` passes per width, then one bit more, width after width, before one
+ID per luminaire. The last check sample (seed ``seed``) is the verification reported in the plan.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,9 +36,6 @@ from planner.verify.verify import Verification, classify, design_windows, observ
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
 
-REPAIR_ROUNDS = 6
-"""Passes over the check samples; each pass adds the windows they found and repairs the IDs."""
-
 CHECK_SEEDS = 2
 """Independent pose samples the IDs are checked and repaired against (the last is the one reported)."""
 
@@ -43,7 +43,7 @@ DESIGN_PER_M2 = 2000.0
 """Least density of the design sample [1/m^2]: rare windows must be in it to be made unique."""
 
 WIDEN_AFTER = 3
-"""Repair passes after which labels are made afresh with one bit more, if rivals remain."""
+"""Repair passes at one width after which the labels get one bit more, if rivals remain (up to one ID per luminaire)."""
 
 MAX_READINGS = 200_000
 """Above this many keyed readings of the site's short triples, rivals join the ID search as they are found."""
@@ -141,57 +141,148 @@ def design_per_m2(per_m2: float, floor_m2: float) -> float:
     return min(max(5 * per_m2, DESIGN_PER_M2), max(DESIGN_MAX_POSES / max(floor_m2, 1e-6), 2 * per_m2))
 
 
-def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
-                   proof: Proof, *, seed: int, per_m2: float, tolerance_m: float,
-                   observations: dict) -> tuple[Assignment, Verification]:
-    """The window scheme against a complete window set: every pair that must differ is listed
-    (:mod:`planner.codes.pairwise`) or, where they are over
+@dataclass(frozen=True)
+class ProvedLabels:
+    """Labels designed against a complete window set (:func:`proved_labels`).
+
+    ``labels`` (N,) 0..``k``-1, or None when no width below one ID per luminaire was met;
+    ``bound`` the counting lower bound on the labels of this set
+    (:func:`planner.codes.classes.clique_lower_bound`, :func:`~planner.codes.classes.near_lower_bound`);
+    ``detail`` what ``plan.yaml`` records.
+    """
+
+    labels: np.ndarray | None
+    k: int
+    bound: int
+    detail: dict
+
+    @property
+    def bits(self) -> int:
+        return bits_for(max(self.k, 2))
+
+    @property
+    def bound_bits(self) -> int:
+        return bits_for(max(self.bound, 2))
+
+
+def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *, seed: int = 0,
+                  matches: Callable[[], np.ndarray] | None = None,
+                  hopeless_per_luminaire: float | None = None) -> ProvedLabels | None:
+    """The fewest bits whose labels keep every window of a complete set apart from every triple of the site.
+
+    Every pair that must differ is listed (:mod:`planner.codes.pairwise`) or, where they are over
     :data:`planner.codes.pairwise.ALIKE_BUDGET` (exact lattices), every group of triples of one
-    shape (:mod:`planner.codes.classes`); no sample, key cells or repair rounds are needed."""
-    assert proof.triangles is not None
+    shape (:mod:`planner.codes.classes`; ``matches`` gives :meth:`Proof.shape_matches`, found once).
+    Widths are tried from the counting bound up, each by min-conflicts for at most
+    :data:`PROVED_STEPS_PER_LUMINAIRE` moves per luminaire; a width that falls short seeds the next
+    with its best labels (valid labels there too, with the conflicts it left to resolve), so a
+    width's conflicts lead to one bit more, not to one ID per luminaire. Widths whose random labels
+    leave more conflicts than ``hopeless_per_luminaire`` per luminaire (default
+    :data:`HOPELESS_PER_LUMINAIRE`, :data:`HOPELESS_IN_GROUPS_PER_LUMINAIRE` for groups) are skipped
+    at first; if no other width is met they are climbed too, from the first skipped. None when
+    neither the pairs nor the groups are within their budgets (:data:`planner.codes.classes.LINK_BUDGET`).
+    """
     n = len(xyz)
-    pairs = pairwise.alike_pairs(proof.triangles, xyz, tolerance_m)
+    pairs = pairwise.alike_pairs(triangles, xyz, tolerance_m, budget=pairwise.ALIKE_BUDGET)
     if pairs is not None:
         index = pairwise.Index(n, pairs)
-        hopeless, size = HOPELESS_PER_LUMINAIRE * n, {"alike_pairs": len(pairs)}
+        per, size = HOPELESS_PER_LUMINAIRE, {"alike_pairs": len(pairs)}
 
         def index_for(K: int) -> pairwise.ConflictIndex | None:
             return index
     else:
-        groups = classes.shape_groups(proof.triangles, xyz, tolerance_m, proof.shape_matches(tolerance_m))
-        hopeless, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE * n, {"shape_groups": groups.count,
+        groups = classes.shape_groups(triangles, xyz, tolerance_m, matches() if matches else None)
+        if groups is None:  # neither the pairs nor the groups fit
+            return None
+        per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
                                                                 "grouped_triples": len(groups.triples)}
 
         def index_for(K: int) -> pairwise.ConflictIndex | None:
             return classes.ClassIndex(n, groups, K) if classes.ClassIndex.fits(groups, K) else None
+    hopeless = (per if hopeless_per_luminaire is None else hopeless_per_luminaire) * n
     unique_bits = bits_for(n)
-    bound = classes.clique_lower_bound(proof.triangles, xyz)  # no fewer labels can work: not tried
-    labels, k, tried, steps_of = None, n, [], 0
+    bound = max(classes.clique_lower_bound(triangles, xyz),  # no fewer labels can work: not tried
+                classes.near_lower_bound(triangles, xyz, tolerance_m))
     max_steps = max(1000, PROVED_STEPS_PER_LUMINAIRE * n)
-    for b in range(max(1, bits_for(bound)), unique_bits):
-        width = index_for(2 ** b)
-        if width is None:
-            continue
-        if width.begin(np.random.default_rng([seed, b]).integers(0, 2 ** b, n))[0] > hopeless:
-            continue  # measured: such widths stall (4 bits on the jittered sites of tests/verify/test_window_set.py)
-        labels, steps_of = pairwise.search(width, 2 ** b, seed=seed, max_steps=max_steps)
-        tried.append(b)
-        if labels is not None:
-            k = 2 ** b
-            break
-    method = f"min-conflicts against the {len(proof.triangles):,} proved windows"
+    tried: list[int] = []
+    left: list[int] = []
+    skipped: list[int] = []
+    steps_of = 0
+
+    def climb(widths: list[int], skip: bool) -> tuple[np.ndarray | None, int]:
+        """Labels of the first width of ``widths`` met (and its K), each width seeded by the one below."""
+        nonlocal steps_of
+        below: np.ndarray | None = None  # the best labels of the last width tried, if it fell short
+        for b in widths:
+            K = 2 ** b
+            width = index_for(K)
+            if width is None:
+                continue
+            rng = np.random.default_rng([seed, K])
+            if below is None:
+                if skip and width.begin(np.random.default_rng([seed, b]).integers(0, K, n))[0] > hopeless:
+                    skipped.append(b)  # measured: such widths stall (4 bits on the jittered sites of
+                    continue  # tests/verify/test_window_set.py); tried last, if no other is met
+                lab = rng.integers(0, K, n).astype(np.int64)
+            else:  # the width below, short of a few conflicts: its labels are labels of this width too
+                lab = below
+            conflicts, steps_of = pairwise.search_from(width, K, lab, rng=rng, max_steps=max_steps)
+            tried.append(b)
+            left.append(int(conflicts))
+            if conflicts == 0:
+                return lab, K
+            below = lab
+        return None, n
+
+    widths = list(range(max(1, bits_for(bound)), unique_bits))
+    labels, k = climb(widths, skip=True)
+    if labels is None and skipped:  # every width left conflicts: the skipped ones too, each seeding the next
+        labels, k = climb(widths[widths.index(skipped[0]):], skip=False)
+    detail = {"windows": len(triangles), **size, "widths_tried": tried, "conflicts_left": left, "steps": int(steps_of),
+              "max_steps": max_steps, "labels": int(k)}
+    return ProvedLabels(labels, k, int(bound), detail)
+
+
+def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
+                   proof: Proof, *, seed: int, per_m2: float, tolerance_m: float,
+                   observations: dict) -> tuple[Assignment, Verification] | None:
+    """The window scheme against a complete window set (:func:`proved_labels`): no sample, key
+    cells or repair rounds are needed. None when the set is too large to design against."""
+    assert proof.triangles is not None
+    n = len(xyz)
+    got = proved_labels(proof.triangles, xyz, tolerance_m, seed=seed, matches=lambda: proof.shape_matches(tolerance_m))
+    if got is None:
+        return None
+    labels, method = got.labels, f"min-conflicts against the {len(proof.triangles):,} proved windows"
     if labels is None:
         labels, method = np.arange(n, dtype=np.int64), "distinct labels (no shorter labels found)"
     ids = labels.astype(np.int64) + 1
-    bits = bits_for(max(k, 2))
     if seed not in observations:
         observations[seed] = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
     check = classify(observations[seed], ids)
-    detail = {"windows": len(proof.triangles), **size, "widths_tried": tried,
-              "steps": int(steps_of), "max_steps": max_steps, "labels": int(k),
-              "optimal": bits == bits_for(bound), "lower_bound_labels": int(bound)}
-    return Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, unique_bits, bits_for(bound),
+    detail = {**got.detail, "optimal": got.bits == got.bound_bits, "lower_bound_labels": got.bound}  # in this order
+    return Assignment("window", ids, tile_regions(xyz[:, :2], graph, got.k), got.bits, bits_for(n), got.bound_bits,
                       method, detail), check
+
+
+def window_set_bound(proof: Proof, xyz: np.ndarray, window: Assignment | None,
+                     tolerance_m: float = CONGRUENCE_TOLERANCE_M) -> dict | None:
+    """What ``plan.yaml`` says beside the width (``code.window_set``): whether the window set the IDs
+    answer to is proved or sampled, its size and its counting lower bound (labels and bits).
+
+    Proved: the larger of :func:`planner.codes.classes.clique_lower_bound` and
+    :func:`~planner.codes.classes.near_lower_bound` of the proved set, whatever the scheme.
+    Otherwise the window scheme's own bound over the windows it protected (``window``), or None
+    when it was not made."""
+    if proof.triangles is not None:
+        labels = max(classes.clique_lower_bound(proof.triangles, xyz),
+                     classes.near_lower_bound(proof.triangles, xyz, tolerance_m))
+        return {"set": "proved", "windows": len(proof.triangles), "lower_bound_labels": int(labels),
+                "lower_bound_bits": bits_for(max(labels, 2))}
+    if window is None or "lower_bound_labels" not in window.detail:
+        return None
+    return {"set": "sampled", "windows": int(window.detail["windows"]),
+            "lower_bound_labels": int(window.detail["lower_bound_labels"]), "lower_bound_bits": window.lower_bound_bits}
 
 
 def assign_unique(xy: np.ndarray, graph: NeighbourGraph) -> Assignment:
@@ -215,8 +306,10 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     """
     seen = {} if observations is None else observations
     if proof is not None and proof.complete:
-        return _assign_proved(xyz, radii, outline, graph, camera, proof, seed=seed,
+        made = _assign_proved(xyz, radii, outline, graph, camera, proof, seed=seed,
                               per_m2=per_m2, tolerance_m=tolerance_m, observations=seen)
+        if made is not None:
+            return made  # else designed as below, and judged on the proved set by the caller
 
     def checked(s: int, labels: np.ndarray) -> Verification:
         if s not in seen:
@@ -229,6 +322,9 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     design = design_windows(xyz, radii, outline, camera, per_m2=design_per_m2(per_m2, floor_m2), seed=seed + 1,
                             tolerance_m=tolerance_m)
     windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
+    if proof is not None and proof.triangles is not None:  # proved, but too large to design against directly
+        windows = np.unique(np.sort(np.vstack([windows, proof.triangles]), axis=1), axis=0)
+        bound = max(bound, longest_side(proof.triangles, xyz))
     others, first = None, windows
     full = _keyed(windows, xyz, tolerance_m)
     lazy = len(full[0]) > MAX_READINGS
@@ -250,30 +346,40 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     code, labels, k, problem = solve()
     method = code.method
     check_seeds = [seed + 1000 * (r + 1) for r in range(CHECK_SEEDS - 1)] + [seed]
-    for round_ in range(REPAIR_ROUNDS + 1):
+    widths, passes = [bits_for(max(k, 2))], 0  # passes: repairs at the present width
+    while True:
         found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
         missed: list[tuple[int, ...]] = []
         check: Verification | None = None
         for s in check_seeds:
             check = checked(s, labels)
             missed.extend(g[0] for g in check.conflicts)  # a sampled window outside the set; rivals follow
-        if (not found and not missed) or round_ == REPAIR_ROUNDS:
+        if (not found and not missed) or len(np.unique(labels)) == n:
             break
         windows = np.vstack([windows, np.array(missed, dtype=np.int64).reshape(-1, 3)])
         if lazy:
             assert others is not None  # lazy keying starts from the windows and only grows
             others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])
-        if round_ == WIDEN_AFTER:  # repairs at this width keep making new rivals: one bit more
-            new_code, labels, k, problem = solve(min_bits=(k - 1).bit_length() + 1)
-        else:
+        passes += 1
+        if passes <= WIDEN_AFTER:
             new_code, labels, k, problem = solve((labels, k))
+        elif bits_for(max(k, 2)) + 1 < bits_for(n):  # repairs at this width keep making new rivals: one bit
+            # more, afresh (measured on the hexagonal site, rivals lazy: labels carried up from the width
+            # below crowd into half the labels, and rivals the search does not know yet follow them)
+            new_code, labels, k, problem = solve(min_bits=bits_for(max(k, 2)) + 1)
+            widths.append(bits_for(max(k, 2)))
+            passes = 0
+        else:  # no reuse left to try
+            new_code, labels, k = None, np.arange(n, dtype=np.int64), n
         code = new_code or code
         method = f"{code.method}, repaired against rivals and verification"
+        if k == n:
+            method = "distinct labels (every shorter width left rivals)"
     ids = labels.astype(np.int64) + 1
     bits = bits_for(max(k, 2))
     detail = {"windows": int(problem[3].sum()), "sampled_windows": len(design.windows),
               "max_side_m": round(bound, 4), "rivals": "lazy" if lazy else "all",
-              "labels": int(k), "optimal": bool(code.optimal and bits == code.bits),
+              "widths_tried": widths, "labels": int(k), "optimal": bool(code.optimal and bits == code.bits),
               "lower_bound_labels": int(code.lower_bound_labels)}
     assignment = Assignment("window", ids, tile_regions(xyz[:, :2], graph, k), bits, bits_for(n),
                             int(code.lower_bound_bits), method, detail)

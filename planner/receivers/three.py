@@ -9,7 +9,7 @@ import numpy as np
 
 from planner.camera.model import Camera, Poses
 from planner.codes.assignment import assign_paper
-from planner.codes.schemes import assign_unique, assign_window
+from planner.codes.schemes import assign_unique, assign_window, window_set_bound
 from planner.modulation.timing import smallest_window_image_rows
 from planner.parallel import Runner
 from planner.receivers.base import Job, Planned, Receiver
@@ -71,6 +71,10 @@ class ThreeLeds(Receiver):
         else:
             chosen = job.scheme
         assignment, verification = made[chosen]
+        counted = (window_set_bound(proof, xyz, made.get("window", (None, None))[0], job.tolerance_m)
+                   if proof is not None else None)
+        if counted is not None:  # the counting bound of the window set, proved or sampled, beside the width
+            assignment = replace(assignment, detail={**assignment.detail, "window_set": counted})
         considered = {k: {"bits": a.bits, "ambiguous_poses": (v.count(1) if v else None),
                           "window_set_conflicts": (len(v.window_set.conflicts) if v and v.window_set else None)}
                       for k, (a, v) in made.items()}
