@@ -76,8 +76,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these cases (see --list)")
     parser.add_argument("--list", action="store_true", help="list the cases and exit")
+    parser.add_argument("--keep", type=Path, metavar="DIR", help="write the outputs under DIR and keep them")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="plan-bench-") as tmp:
+        outs = args.keep or Path(tmp)
         todo = cases(office_yaml(Path(tmp) / "office-48.yaml"))
         if args.list:
             print("\n".join(f"{name}: vlp-plan {' '.join(a)}" for name, a in todo.items()))
@@ -86,10 +88,10 @@ def main() -> None:
         print(f"# {platform.node()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
               f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, load {load:.1f} at start")
         print("| case | exit | CPU [s] | wall [s] | peak [MiB] |\n|---|---:|---:|---:|---:|")
-        for k, (name, a) in enumerate(todo.items()):
+        for name, a in todo.items():
             if args.only and name not in args.only:
                 continue
-            code, cpu, wall, peak = run(a, Path(tmp) / f"out-{k}")
+            code, cpu, wall, peak = run(a, outs / name.replace(" ", "_"))
             print(f"| {name} | {code} | {cpu:.1f} | {wall:.1f} | {peak:,.0f} |", flush=True)
         print(f"load {os.getloadavg()[0]:.1f} at the end")
 
