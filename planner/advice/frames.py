@@ -3,12 +3,12 @@
 A change that brings more poses a window can still stop the plan of the changed site at "no chip
 rate fits": a wider lens or higher luminaires make every LED image smaller, and the gravity
 receiver's two-LED windows reach farther LEDs (docs/advice.md). For a candidate site this module
-takes the smallest LED image of a window as the planner does (:func:`planner.modulation.timing.
-smallest_image_rows` of its receiver mode (:mod:`planner.receivers.modes`) on the same
-seeded timing sample a plan of that site would draw) and asks :func:`planner.modulation.timing.modulate`,
-the planner's check (one image, else over video frames, :mod:`planner.modulation.multiframe`), whether a frame
-fits with the plan's driver limit and the candidate camera's row time; if not, the slowest driver
-(whole kHz) at which it would.
+takes the smallest LED image of a window as the planner does (the windows of its receiver mode,
+:meth:`planner.receivers.base.Receiver.window_leds`, on the same seeded timing sample a plan of
+that site would draw: the advice passes the windows it found for the coverage) and asks the planner's
+check (:func:`planner.modulation.timing.frame_fits`: one image, else over video frames,
+:mod:`planner.modulation.multiframe`) whether a frame fits with the plan's driver limit and the
+candidate camera's row time; if not, the slowest driver (whole kHz) at which it would.
 
 The changed site's IDs are designed only when it is planned, so the frame is taken as long as
 the longest it can be: unique IDs (``ceil(log2 N)`` bits, a scheme every site has) plus the plan's
