@@ -21,13 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.advice.changes import KNOBS, RECEIVERS, WINDOW_WORDS, Change, Site
+from planner.advice.changes import KNOBS, WINDOW_WORDS, Change, Site
+from planner.advice.changes import RECEIVERS as RECEIVERS  # the coverage measure per mode, re-exported
 from planner.advice.frames import FrameFit, FrameLimits, frame_fit, frame_text
+from planner.camera.model import Poses
 from planner.defaults import COVERAGE_GOAL, USABLE_COVERAGE
 from planner.layout.model import area_m2
+from planner.modulation.timing import timing_per_m2
 from planner.receivers.modes import PAPER
 from planner.receivers.modes import RECEIVERS as MODES
-from planner.verify.windows import working_area
+from planner.verify.windows import pose_count, sample_poses, working_area
 
 ADVICE_POSES_PER_M2 = 10.0
 """Pose density of the advice's coarse sample [1/m^2] (the plan verifies at 400)."""
@@ -125,6 +128,44 @@ def advice_per_m2(area: np.ndarray) -> float:
     return float(np.clip(ADVICE_POSES_PER_M2 * m2, ADVICE_MIN_POSES, ADVICE_MAX_POSES)) / m2
 
 
+class _SharedWindows:
+    """The advice's pose samples, drawn once: every candidate site samples the same floor with the same seed and
+    the same receiver heights and tilt, so they share one Sobol draw; the coverage sample (``per_m2``) and the
+    timing sample of the frame check (:func:`planner.modulation.timing.timing_per_m2`) are prefixes of it, and a
+    candidate's windows are found once, on the longer prefix it needs (windows are found pose by pose, so a
+    prefix's windows are the windows of the prefix: the figures are those of separate draws)."""
+
+    def __init__(self, area: np.ndarray, per_m2: float, seed: int):
+        self.area, self.seed = area, seed
+        self.n_coverage, self.n_timing = pose_count(area, per_m2), pose_count(area, timing_per_m2(area))
+        self.per_m2 = max(per_m2, timing_per_m2(area))
+        self.poses: dict[tuple[float, ...], Poses] = {}
+        self.found: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
+
+    def _windows(self, s: Site, changes: tuple[Change, ...], n: int) -> tuple[Poses, np.ndarray, np.ndarray]:
+        cam = s.camera
+        held = (cam.min_height_m, cam.max_height_m, cam.max_tilt_rad)
+        if held not in self.poses:
+            self.poses[held] = sample_poses(self.area, cam, self.per_m2, self.seed)
+        poses = self.poses[held]
+        key = tuple(c.text for c in changes)
+        leds, covered = self.found.get(key, (np.empty((0, MODES[s.receiver].leds), dtype=np.int64),
+                                             np.zeros(0, dtype=bool)))
+        if len(covered) < n:
+            more = MODES[s.receiver].window_leds(poses.subset(slice(len(covered), n)), s.xyz, s.radii, cam)
+            leds, covered = np.concatenate([leds, more[0]]), np.concatenate([covered, more[1]])
+            self.found[key] = leds, covered
+        return poses.subset(slice(0, n)), leds[:n], covered[:n]
+
+    def coverage(self, s: Site, changes: tuple[Change, ...]) -> float:
+        """Share of the coverage sample's poses that see a window of ``s``'s receiver."""
+        return float(self._windows(s, changes, self.n_coverage)[2].mean())
+
+    def timing(self, s: Site, changes: tuple[Change, ...]) -> tuple[Poses, np.ndarray, np.ndarray]:
+        """The timing sample's poses, window LEDs and coverage (:func:`planner.advice.frames.smallest_image_rows`)."""
+        return self._windows(s, changes, self.n_timing)
+
+
 def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float = 0.0, *, goal: float = COVERAGE_GOAL,
            seed: int = 0, frames: FrameLimits | None = None, allow_unusable: bool = False) -> Advice:
     """Try the candidate changes on ``site`` (planned at ``coverage``, ``too_few`` of its poses
@@ -135,8 +176,9 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float =
     knobs) that does, else the least pair that does with faster drivers, else the best pair. With
     ``frames`` (the plan's limits) a change reaches the goal only if its frames fit them too.
     """
-    per_m2 = advice_per_m2(working_area(site.xyz[:, :2], site.outline))
-    cache: dict[tuple[str, ...], float] = {}
+    area = working_area(site.xyz[:, :2], site.outline)
+    per_m2 = advice_per_m2(area)
+    windows = _SharedWindows(area, per_m2, seed)
 
     def applied(changes: tuple[Change, ...]) -> Site:
         s = site
@@ -144,23 +186,18 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float =
             s = c.apply(s)
         return s
 
-    def measure(changes: tuple[Change, ...]) -> float:
-        key = tuple(c.text for c in changes)
-        if key not in cache:
-            s = applied(changes)
-            cache[key] = RECEIVERS[s.receiver](s, per_m2, seed)
-        return cache[key]
-
     def row(changes: tuple[Change, ...]) -> Row:
-        cov = measure(changes)
+        s = applied(changes)
+        cov = windows.coverage(s, changes)
         covers = cov >= goal + MARGIN
-        return Row(changes, cov, covers, frame_fit(applied(changes), frames, seed) if covers and frames else None)
+        return Row(changes, cov, covers, frame_fit(s, frames, seed, windows.timing(s, changes)) if covers and frames
+                   else None)
 
     def kept(tried: list[Row]) -> Row:  # the one that reaches, else the least fixed by drivers, else the best
         return min(enumerate(tried), key=lambda kr: (kr[1].rank(), -kr[1].coverage if kr[1].rank() == 2
                                                      else kr[0]))[1]
 
-    baseline = measure(())
+    baseline = windows.coverage(site, ())
     knobs = [c for c in (knob(site) for knob in KNOBS) if c]
     rows: list[Row] = []
     if coverage < goal:
@@ -186,7 +223,7 @@ def advise(site: Site, coverage: float, too_few: float = 0.0, ambiguous: float =
             if tried and not any(r.rank() < 2 for r in rows):
                 rows.append(kept(tried))
     rows.sort(key=lambda r: (r.rank(), len(r.changes), -r.coverage if r.rank() == 2 else 0))
-    n_poses = max(1, int(round(per_m2 * area_m2(working_area(site.xyz[:, :2], site.outline)))))
+    n_poses = max(1, int(round(per_m2 * area_m2(area))))
     return Advice(coverage, too_few, ambiguous, goal, baseline, tuple(rows), n_poses, per_m2, site.receiver, frames,
                   allow_unusable)
 

@@ -11,6 +11,8 @@ to 1e-9 px (tests/test_lens.py).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.polynomial import Polynomial
 
@@ -118,6 +120,7 @@ VIEW_SLACK = 1e-7
 """Relative shrink of the view rectangle below the lens's inverse (whose residual is under 1e-9)."""
 
 
+@functools.lru_cache(maxsize=64)  # the error map asks it again for every simulated image of one camera
 def view_rectangle(model: str, coefficients: tuple[float, ...],
                    sensor: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
     """The *view*: an axis-aligned rectangle ``(x_lo, x_hi, y_lo, y_hi)`` of ideal normalised coordinates

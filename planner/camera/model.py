@@ -128,7 +128,7 @@ class Camera:
             return 0.0, float(self.width_px), 0.0, float(self.height_px)
         sensor = ((0.0 - self.cx_px) / self.fx_px, (self.width_px - self.cx_px) / self.fx_px,
                   (0.0 - self.cy_px) / self.fy_px, (self.height_px - self.cy_px) / self.fy_px)
-        xl, xr, yt, yb = lens.view_rectangle(self.lens, self.distortion, sensor)
+        xl, xr, yt, yb = lens.view_rectangle(self.lens, tuple(self.distortion), sensor)
         return (self.cx_px + self.fx_px * xl, self.cx_px + self.fx_px * xr,
                 self.cy_px + self.fy_px * yt, self.cy_px + self.fy_px * yb)
 

@@ -141,6 +141,22 @@ class Modulation:
         return {"line_code": self.code.name, "preamble": self.code.preamble, **self.timing.summary()}
 
 
+def frame_fits(frame_len: int, max_run: int, rows: float, row_time_s: float, *, driver_max_hz: float = DRIVER_MAX_HZ,
+               flicker_hz: float = FLICKER_HZ, video_fps: float = VIDEO_FPS, max_video_frames: int = MAX_VIDEO_FRAMES,
+               mcu_clock_hz: float | None = None) -> bool:
+    """Whether :func:`modulate` finds a chip rate for frames of ``frame_len`` chips (the same two checks, without
+    working out what would fit when none does)."""
+    try:
+        choose_timing(frame_len, max_run, rows, row_time_s, driver_max_hz=driver_max_hz, flicker_hz=flicker_hz)
+        return True
+    except PlanningError:
+        if max_video_frames < 2:
+            return False
+    high = min(1.0 / (ROWS_PER_CHIP * row_time_s), driver_max_hz)
+    return fit_video(frame_len, rows, row_time_s, 2 * max_run * flicker_hz, high, video_fps, max_video_frames,
+                     mcu_clock_hz) is not None
+
+
 def choose_video_timing(frame_len: int, max_run: int, rows: float, row_time_s: float, *,
                         driver_max_hz: float = DRIVER_MAX_HZ, flicker_hz: float = FLICKER_HZ,
                         video_fps: float = VIDEO_FPS, max_frames: int = MAX_VIDEO_FRAMES,

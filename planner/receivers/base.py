@@ -20,7 +20,7 @@ from planner.graph import NeighbourGraph
 from planner.parallel import Runner
 from planner.positioning.error_terms import ErrorTerms
 from planner.verify.verify import Verification
-from planner.verify.windows import PoseSample
+from planner.verify.windows import PoseSample, sample_poses, working_area
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,13 @@ class Receiver:
 
     def coverage(self, xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, per_m2: float, seed: int) -> float:
         """Share of sampled poses that see a window of this mode."""
+        poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
+        return float(self.window_leds(poses, xyz, radii, camera)[1].mean())
+
+    def window_leds(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each pose's window under this mode's rule: its LEDs (P, leds) luminaire indices and whether the pose
+        sees one (P,) bool; pose by pose, so the windows of a prefix of ``poses`` are a prefix of these."""
         raise NotImplementedError
 
     def decodable(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, camera: Camera, *,

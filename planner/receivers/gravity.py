@@ -45,9 +45,10 @@ class TwoLedsGravity(Receiver):
         return verify_gravity(xyz, radii, ids, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m,
                               install_tolerance_m=install_tolerance_m)
 
-    def coverage(self, xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, per_m2: float, seed: int) -> float:
-        poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
-        return float(find_pairs(poses, xyz, radii, camera).covered.mean())
+    def window_leds(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        pp = find_pairs(poses, xyz, radii, camera)
+        return pp.pairs, pp.covered
 
     def decodable(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, camera: Camera, *,
                   per_m2: float, seed: int) -> np.ndarray:
@@ -71,10 +72,20 @@ class TwoLedsGravity(Receiver):
         return replace(terms, gravity_rad=accelerometer_sigma_rad)
 
 
+def sample_pairs(sample: PoseSample, xyz: np.ndarray, radii: np.ndarray, camera: Camera, per_m2: float
+                 ) -> tuple[Poses, PosePairs]:
+    """The first poses of ``sample`` at ``per_m2`` and their two-LED windows, found once per sample (windows are
+    found pose by pose: a shorter prefix's are the first of a longer one's)."""
+    poses, _ = sample.first(per_m2)
+    have = sample.found.get("pairs")
+    if have is None or len(have.pairs) < len(poses):
+        have = sample.found["pairs"] = find_pairs(poses, xyz, radii, camera)
+    return poses, have.first(len(poses))
+
+
 def smallest_pair_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
     """Rows of the smallest LED image in any two-LED window over the timing prefix of ``sample``."""
-    poses, _ = sample.first(timing_per_m2(sample.area))
-    pp = find_pairs(poses, xyz, radii, camera)
+    poses, pp = sample_pairs(sample, xyz, radii, camera, timing_per_m2(sample.area))
     if not pp.covered.any():
         raise PlanningError("no sampled camera pose sees two whole LEDs: no LED image to fit a frame into; "
                             "check the luminaire spacing against the camera (docs/camera.md)")
@@ -88,8 +99,7 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
                  install_tolerance_m: float) -> tuple[Assignment, Verification, dict]:
     """IDs for the gravity receiver under ``scheme`` (``auto``: the pair code or the paper's, fewer bits
     that verifies; else unique), each verified on the sample's two-LED windows and the pair set."""
-    poses, _ = sample.first(per_m2)
-    pp: PosePairs = find_pairs(poses, xyz, radii, camera)
+    poses, pp = sample_pairs(sample, xyz, radii, camera, per_m2)
     proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, sample.area)
     sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
 
@@ -128,8 +138,6 @@ def verify_gravity(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline,
                    seed: int, tolerance_m: float, install_tolerance_m: float) -> Verification:
     """A gravity plan verified anew (``vlp-verify``): sampled two-LED windows and the pair set, proved where
     the pair proof completes (made from the luminaires and the camera, never read from the plan)."""
-    from planner.verify.windows import sample_poses, working_area
-
     area = working_area(xyz[:, :2], outline)
     poses = sample_poses(area, camera, per_m2, seed)
     pp = find_pairs(poses, xyz, radii, camera)

@@ -15,7 +15,7 @@ from planner.parallel import Runner
 from planner.receivers.base import Job, Planned, Receiver
 from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound, verify_plan
-from planner.verify.windows import PoseSample, find_windows, sample_poses, working_area
+from planner.verify.windows import PoseSample, find_windows
 
 
 class ThreeLeds(Receiver):
@@ -92,9 +92,10 @@ class ThreeLeds(Receiver):
         return replace(result, window_set=check_window_set(xyz, radii, ids, bound, tolerance_m=tolerance_m,
                                                            install_tolerance_m=install_tolerance_m, proof=proof))
 
-    def coverage(self, xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, per_m2: float, seed: int) -> float:
-        poses = sample_poses(working_area(xyz[:, :2], outline), camera, per_m2, seed)
-        return float(find_windows(poses, xyz, radii, camera).covered.mean())
+    def window_leds(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        w = find_windows(poses, xyz, radii, camera)
+        return w.triples, w.covered
 
     def decodable(self, poses: Poses, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, camera: Camera, *,
                   per_m2: float, seed: int) -> np.ndarray:

@@ -11,7 +11,7 @@ triangle, but does not know its yaw).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from matplotlib.path import Path as PolygonPath
@@ -118,6 +118,7 @@ class PoseSample:
     poses: Poses
     windows: PoseWindows
     seed: int
+    found: dict = field(default_factory=dict, compare=False, repr=False)  # other windows of these poses, found once
 
     @classmethod
     def draw(cls, area: np.ndarray, xyz: np.ndarray, radii: np.ndarray, camera: Camera, per_m2: float,
