@@ -264,6 +264,21 @@ def output_file(flag: str, value: str | None) -> Path | None:
     path = Path(value)
     if not path.resolve().parent.is_dir():
         raise UsageError(f"{flag} {value}: directory {path.parent} does not exist")
+    if path.is_dir():
+        raise UsageError(f"{flag} {value}: is a folder; give a file name in it")
+    if path.exists() and not path.is_file():
+        raise UsageError(f"{flag} {value}: exists and is not a regular file (a device or pipe); give a file name")
+    return path
+
+
+def output_dir(flag: str, value: str | None) -> Path | None:
+    """The folder an option such as ``--save-failures DIR`` names (None if not given), checked before any
+    work: it may not be an existing file, else :class:`UsageError` naming the flag."""
+    if not value:
+        return None
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{flag} {value}: exists and is not a folder; give a folder, or a name not yet taken")
     return path
 
 
@@ -352,6 +367,13 @@ def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], nam
     except KeyboardInterrupt:
         print(f"{name}: interrupted; no output was written", file=sys.stderr)
         return ExitCode.INTERRUPTED
+    except OSError as exc:  # the system refused a read or write the checks could not foresee (a full disk)
+        if verbose:
+            traceback.print_exc()
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{name}: error: {one_line(where)}{exc.strerror or exc}; nothing was written there (free space or "
+              "choose another place)", file=sys.stderr)
+        return ExitCode.INPUT
     except Exception as exc:  # a bug: still one line, unless asked for more
         if verbose:
             traceback.print_exc()
