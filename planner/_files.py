@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -131,6 +132,27 @@ def write_atomically(path: str | Path, write: Callable[[Path], object]) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def staging_folder(outdir: Path) -> Path:
+    """A new hidden folder beside ``outdir`` to fill before it is moved into place, named after this process
+    (``.NAME.stage-PID-XXXX``); first removes those a killed run left (``kill -9``, a power cut: its process is
+    gone), so they do not pile up. Those of live processes (a run in parallel) are left alone."""
+    for old in outdir.parent.glob(f".{outdir.name}.stage-*-*"):
+        pid = old.name[len(outdir.name) + 8:].split("-", 1)[0]
+        if old.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
+    return Path(tempfile.mkdtemp(prefix=f".{outdir.name}.stage-{os.getpid()}-", dir=outdir.parent))
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def write_bytes_atomically(path: str | Path, data: bytes) -> None:

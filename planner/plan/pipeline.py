@@ -9,12 +9,12 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from planner._files import staging_folder
 from planner.advice.advise import COVERAGE_GOAL, Site, advise
 from planner.advice.frames import FrameLimits
 from planner.camera.model import Camera
@@ -165,7 +165,7 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
                          "replanning would delete; choose another -o, or move as-built.json away first")
     try:
         outdir.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
+        stage = staging_folder(outdir)  # removes what a killed run (kill -9) left
     except OSError as exc:
         raise UsageError(f"-o {outdir}: cannot write there ({exc.strerror}); choose another -o") from None
     source = Path(plan.layout.source_path)
