@@ -49,7 +49,7 @@ def _tilts(text: str) -> list[float]:
     except ValueError:
         tilts = []
     if not tilts or not all(0 <= t < 90 for t in tilts):
-        raise UsageError(f"--tilts {text!r}: expected degrees from 0 to below 90, separated by commas")
+        raise UsageError(f"--tilts {cli.shown(text)}: expected degrees from 0 to below 90, separated by commas")
     return tilts
 
 

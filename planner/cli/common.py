@@ -50,13 +50,19 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see {self.prog} --help)")
 
 
+def shown(text: str) -> str:
+    """``text`` quoted for an error line, cut short if long (a 5,000-digit number is not echoed whole)."""
+    quoted = repr(text)
+    return quoted if len(quoted) <= 40 else f"{quoted[:30]}...' ({len(text):,} characters)"
+
+
 def positive_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
         value = 0
     if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {shown(text)}")
     return value
 
 
@@ -65,7 +71,7 @@ def count_up_to(maximum: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         value = positive_int(text)
         if value > maximum:
-            raise argparse.ArgumentTypeError(f"must be at most {maximum:,}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be at most {maximum:,}, got {shown(text)}")
         return value
     return parse
 
@@ -76,9 +82,9 @@ def _number(text: str, minimum: float, strict: bool, maximum: float = math.inf) 
     except ValueError:
         value = math.nan
     if not (value > minimum if strict else value >= minimum) or math.isinf(value):
-        raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {shown(text)}")
     if value > maximum:
-        raise argparse.ArgumentTypeError(f"must be at most {maximum:g}, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be at most {maximum:g}, got {shown(text)}")
     return value
 
 
@@ -89,6 +95,11 @@ def at_most(maximum: float, strict: bool = True) -> Callable[[str], float]:
     return parse
 
 
+def share(text: str) -> float:
+    """A flag type: a share from 0 to 1."""
+    return _number(text, 0.0, False, 1.0)
+
+
 def seed(text: str) -> int:
     """A random seed: a whole number 0 .. 2**32 - 1."""
     try:
@@ -96,7 +107,7 @@ def seed(text: str) -> int:
     except ValueError:
         value = -1
     if not 0 <= value <= MAX_SEED:
-        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {MAX_SEED}, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {MAX_SEED}, got {shown(text)}")
     return value
 
 

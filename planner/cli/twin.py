@@ -67,9 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"row exposure [us] (default {SENSOR_EXPOSURE_S * 1e6:g})")
     g.add_argument("--blur-px", type=cli.at_most(MAX_BLUR_PX, strict=False), default=SENSOR_BLUR_PX, metavar="PX",
                    help=f"optics blur, Gaussian sigma [px] (default {SENSOR_BLUR_PX:g}, at most {MAX_BLUR_PX:g})")
-    g.add_argument("--read-noise-dn", type=float, default=SENSOR_READ_NOISE_DN, metavar="DN",
+    g.add_argument("--read-noise-dn", type=cli.at_most(255.0, strict=False), default=SENSOR_READ_NOISE_DN, metavar="DN",
                    help=f"read noise sigma [DN of 255] (default {SENSOR_READ_NOISE_DN:g})")
-    g.add_argument("--off-level", type=float, default=0.0, metavar="SHARE",
+    g.add_argument("--off-level", type=cli.share, default=0.0, metavar="SHARE",
                    help="light of an 'off' chip as a share of 'on' (default 0)")
     g.add_argument("--accelerometer-deg", type=cli.non_negative_float, default=ACCELEROMETER_SIGMA_DEG, metavar="DEG",
                    help="gravity plans: RMS error of the accelerometer's vertical, in degrees "
@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("grading")
     g.add_argument("--max-error", type=cli.positive_float, default=TOLERANCE_M, metavar="M",
                    help=f"a fix this close to the truth counts as located [m] (default {TOLERANCE_M:g})")
-    g.add_argument("--min-success", type=float, default=0.99, metavar="SHARE",
+    g.add_argument("--min-success", type=cli.share, default=0.99, metavar="SHARE",
                    help="batch: exit 3 below this success rate (default 0.99)")
     cli.common_flags(p, "print the result as JSON")
     return p
