@@ -293,16 +293,21 @@ def output_dir(flag: str, value: str | None) -> Path | None:
     return path
 
 
-def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
+def site_key(path: str | Path | None, *, env: bool = True, prog: str = "vlp-flash") -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
-    ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""
+    ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md). A key file other users may read is
+    warned about on stderr, as ``prog``."""
     from planner.flash.keys import site_key_from
 
     if path:
         try:
             raw = Path(path).read_bytes()
+            mode = Path(path).stat().st_mode
         except OSError as exc:
             raise UsageError(f"--key-file {path}: cannot read ({exc.strerror or exc})") from None
+        if mode & 0o077:  # a warning, not a refusal: the key may already have leaked, and the job must go on
+            print(f"{prog}: warning: --key-file {one_line(str(path))} is readable by "
+                  f"other users (mode {mode & 0o777:o}); chmod 600 it", file=sys.stderr)
         where, from_file = f"--key-file {path}", True
     elif env and os.environ.get("VLP_SITE_KEY"):
         raw, where, from_file = os.environ["VLP_SITE_KEY"].encode("utf-8", "surrogateescape"), "VLP_SITE_KEY", False

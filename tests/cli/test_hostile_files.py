@@ -348,3 +348,25 @@ def test_a_staging_folder_left_by_a_killed_run_is_removed(site, tmp_path, capsys
     capsys.readouterr()
     assert not stale.exists() and live.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, "out"])
+
+
+@pytest.mark.parametrize("mode", [0o644, 0o640, 0o604, 0o600, 0o400])
+def test_a_key_file_others_may_read_is_warned_about(mode, site, tmp_path, capsys):
+    key = tmp_path / "key"
+    key.write_text(bytes(range(32)).hex())
+    key.chmod(mode)
+    assert flash.console_main([str(site / "plan" / "plan.yaml"), "--all", "--dry-run", "--key-file", str(key)]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert warned == ([f"vlp-flash: warning: --key-file {key} is readable by other users (mode {mode:o}); "
+                       f"chmod 600 it"] if mode & 0o077 else []), warned
+
+
+def test_an_emulated_eeprom_holding_a_key_is_private(tmp_path):
+    from planner.flash.avr.runner import provision
+
+    old = os.umask(0o022)
+    try:
+        provision(tmp_path / "AVR-0001.eeprom", 1, "AVR-0001", bytes(range(16)))
+    finally:
+        os.umask(old)
+    assert (tmp_path / "AVR-0001.eeprom").stat().st_mode & 0o777 == 0o600
