@@ -237,7 +237,7 @@ def _plan_edits() -> dict[str, tuple[str, object, str]]:
         doc["code"]["bits"] = 1
 
     def max_id(doc):
-        doc["code"]["max_id"] += 1
+        doc["luminaires"][0]["id"] = 2 ** doc["code"]["bits"] + 1
 
     def moved(doc):
         doc["luminaires"][0]["x"] += 0.3
@@ -248,7 +248,7 @@ def _plan_edits() -> dict[str, tuple[str, object, str]]:
 
     return {"unique plan, one ID twice": ("unique", dup, "used more than once"),
             "bit width below the IDs": ("plan", bits, "disagree"),
-            "max_id above the IDs": ("plan", max_id, "disagree"),
+            "an ID beyond code.max_id": ("plan", max_id, "exceeds code.max_id"),
             "alphabet short of the IDs": ("plan", dup, "distinct IDs"),
             "a luminaire moved since its verdict": ("plan", moved, "edited since"),
             "two IDs swapped since the verdict": ("plan", renumbered, "edited since")}
