@@ -10,6 +10,7 @@ child process with a resource limit (``RLIMIT_FSIZE``: writes past 4 KiB fail as
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import resource
@@ -370,3 +371,16 @@ def test_an_emulated_eeprom_holding_a_key_is_private(tmp_path):
     finally:
         os.umask(old)
     assert (tmp_path / "AVR-0001.eeprom").stat().st_mode & 0o777 == 0o600
+
+
+def test_a_site_photo_header_of_60000_px_is_named_in_the_report(site, tmp_path, capsys):
+    """vlp-report --photos checks the other photos on (by design): the huge one is named, never decoded."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    _png(photos / "L00.png", 60_000, 60_000)
+    code = report.console_main([str(site / "plan" / "plan.yaml"), "--photos", str(photos), "-o",
+                                str(tmp_path / "r"), "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0 and "error" not in err, err
+    problem = json.loads(out)["asbuilt"]["photos"][0]["problem"]
+    assert "60,000 x 60,000 px" in problem and "L00.png" in problem, problem
