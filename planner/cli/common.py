@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import traceback
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -36,7 +37,7 @@ from planner.defaults import (
     PRINCIPAL_ERROR_PX,
     UNIT_TO_M,
 )
-from planner.errors import ExitCode, PlannerError, UsageError
+from planner.errors import ExitCode, PlannerError, PlannerWarning, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera.model import Camera
@@ -293,10 +294,10 @@ def output_dir(flag: str, value: str | None) -> Path | None:
     return path
 
 
-def site_key(path: str | Path | None, *, env: bool = True, prog: str = "vlp-flash") -> bytes:
+def site_key(path: str | Path | None, *, env: bool = True, warn: bool = True) -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
     ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md). A key file other users may read is
-    warned about on stderr, as ``prog``."""
+    warned about when ``warn`` (:class:`~planner.errors.PlannerWarning`, printed by :func:`console_main`)."""
     from planner.flash.keys import site_key_from
 
     if path:
@@ -305,9 +306,9 @@ def site_key(path: str | Path | None, *, env: bool = True, prog: str = "vlp-flas
             mode = Path(path).stat().st_mode
         except OSError as exc:
             raise UsageError(f"--key-file {path}: cannot read ({exc.strerror or exc})") from None
-        if mode & 0o077:  # a warning, not a refusal: the key may already have leaked, and the job must go on
-            print(f"{prog}: warning: --key-file {one_line(str(path))} is readable by "
-                  f"other users (mode {mode & 0o777:o}); chmod 600 it", file=sys.stderr)
+        if warn and mode & 0o077:  # a warning, not a refusal: the key may already have leaked, and the job must go on
+            warnings.warn(PlannerWarning(f"--key-file {path} is readable by other users (mode {mode & 0o777:o}); "
+                                         "chmod 600 it"), stacklevel=2)
         where, from_file = f"--key-file {path}", True
     elif env and os.environ.get("VLP_SITE_KEY"):
         raw, where, from_file = os.environ["VLP_SITE_KEY"].encode("utf-8", "surrogateescape"), "VLP_SITE_KEY", False
@@ -368,7 +369,15 @@ def console_main(argv: list[str] | None, command: Callable[[list[str] | None], i
 
 def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str, verbose: bool) -> int:
     try:
-        return command(argv)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlannerWarning)
+            code = command(argv)
+        for w in caught:  # after the run: a run that fails prints its one error line alone
+            if issubclass(w.category, PlannerWarning):
+                print(f"{name}: warning: {one_line(str(w.message))}", file=sys.stderr)
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        return code
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()

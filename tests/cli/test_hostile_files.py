@@ -360,6 +360,13 @@ def test_a_key_file_others_may_read_is_warned_about(mode, site, tmp_path, capsys
     warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
     assert warned == ([f"vlp-flash: warning: --key-file {key} is readable by other users (mode {mode:o}); "
                        f"chmod 600 it"] if mode & 0o077 else []), warned
+    # a run that fails says its error alone (the warning comes again once the error is fixed)
+    (tmp_path / "bus.csv").write_text("L00,abc\n")
+    assert flash.console_main([str(site / "plan" / "plan.yaml"), "--all", "--bus", "--port",
+                               f"sim://?drivers=12&key={bytes(range(32)).hex()}", "--bus-map", str(tmp_path / "bus.csv"),
+                               "--key-file", str(key), "--journal", str(tmp_path / "j.json")]) in (1, 2)
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("vlp-flash: error: "), lines
 
 
 def test_an_emulated_eeprom_holding_a_key_is_private(tmp_path):
