@@ -100,7 +100,8 @@ FILE_FLAGS = {"verify --map": (verify, lambda s, out: [str(s / "plan" / "plan.ya
 DIR_FLAGS = {"plan -o": (plan, lambda s, out: [str(s / "site.yaml"), "-o", out, *FAST]),
              "report -o": (report, lambda s, out: [str(s / "plan" / "plan.yaml"), "-o", out]),
              "twin --save-failures": (twin, lambda s, out: [str(s / "plan" / "plan.yaml"), "--poses", "2",
-                                                           "--save-failures", out])}
+                                                           "--save-failures", out]),
+             "calibrate --blink-firmware": (calibrate, lambda s, out: ["--blink-firmware", out, "--blink-hz", "100"])}
 OUTPUT_CASES = [(flag, kind) for flag in FILE_FLAGS for kind in ("folder", "pipe")] + \
                [(flag, "file") for flag in DIR_FLAGS]
 
