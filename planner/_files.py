@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -53,12 +54,49 @@ def load_yaml(path: str | Path, missing: str = "no such file"):
     path = Path(path)
     text = read_text(path, "YAML file", missing)
     try:
-        return yaml.load(text, Loader=_LOADER)
+        doc = yaml.load(text, Loader=_LOADER)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}:" if mark else ""
         what = " ".join(str(getattr(exc, "problem", None) or exc).split())  # some of PyYAML's span lines
         raise InputError(f"{path}:{line} not valid YAML ({what})") from exc
+    except (ValueError, OverflowError) as exc:  # a 5,000-digit integer, a date out of range
+        raise InputError(f"{path}: a value YAML cannot hold ({str(exc)[:80]})") from None
+    except RecursionError:
+        raise InputError(f"{path}: YAML nested too deeply") from None
+    _check_expanded_size(doc, path)
+    return doc
+
+
+MAX_YAML_VALUES = 10_000_000
+"""Most values a YAML file may expand to once its aliases are followed (a 100,000-luminaire plan holds about
+3 million): a 'billion laughs' file of nested aliases is refused before anything walks it."""
+
+
+def _check_expanded_size(doc: object, path: Path) -> None:
+    """Count the values ``doc`` holds with every alias followed, sharing work between repeated nodes (linear in
+    the file); :class:`InputError` above :data:`MAX_YAML_VALUES` or if a node contains itself."""
+    size: dict[int, int] = {}
+    stack: list[tuple[object, bool]] = [(doc, False)]
+    open_: set[int] = set()
+    while stack:
+        node, done = stack.pop()
+        if not isinstance(node, (list, dict)) or (id(node) in size and not done):
+            continue
+        children = list(node.keys()) + list(node.values()) if isinstance(node, dict) else node
+        if done:
+            open_.discard(id(node))
+            total = 1 + sum(size.get(id(c), 1) for c in children)
+            if total > MAX_YAML_VALUES:
+                raise InputError(f"{path}: its aliases (*name) expand to more than {MAX_YAML_VALUES:,} values; "
+                                 "write the values out instead of nesting aliases")
+            size[id(node)] = total
+            continue
+        if id(node) in open_:
+            raise InputError(f"{path}: an alias (*name) refers to the node that contains it; write the values out")
+        open_.add(id(node))
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if isinstance(c, (list, dict)))
 
 
 def load_json(path: str | Path, what: str, missing: str = "no such file", max_bytes: int | None = None):
@@ -70,6 +108,8 @@ def load_json(path: str | Path, what: str, missing: str = "no such file", max_by
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: line {exc.lineno}: not valid JSON ({exc.msg})") from None
+    except ValueError as exc:  # an integer of more digits than Python converts (4,300)
+        raise InputError(f"{path}: a number JSON cannot hold here ({str(exc).split(';')[0]})") from None
     except RecursionError:
         raise InputError(f"{path}: JSON nested too deeply to be a {what}") from None
 
@@ -81,6 +121,8 @@ def write_atomically(path: str | Path, write: Callable[[Path], object]) -> None:
     file is removed and ``path`` is untouched. The file gets the usual permissions (umask).
     """
     path = Path(path)
+    if path.is_dir() or (path.exists() and not path.is_file()):
+        raise InputError(f"{path}: is a folder or a device, not a file; give a file name")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.resolve().parent)
     except OSError as exc:
@@ -93,9 +135,34 @@ def write_atomically(path: str | Path, write: Callable[[Path], object]) -> None:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
+    except OSError as exc:  # a full disk, a quota, a read-only file system
+        Path(tmp).unlink(missing_ok=True)
+        raise InputError(f"{path}: cannot write ({exc.strerror or exc}); nothing was written; free space or "
+                         "choose another place") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def staging_folder(outdir: Path) -> Path:
+    """A new hidden folder beside ``outdir`` to fill before it is moved into place, named after this process
+    (``.NAME.stage-PID-XXXX``); first removes those a killed run left (``kill -9``, a power cut: its process is
+    gone), so they do not pile up. Those of live processes (a run in parallel) are left alone."""
+    for old in outdir.parent.glob(f".{outdir.name}.stage-*-*"):
+        pid = old.name[len(outdir.name) + 8:].split("-", 1)[0]
+        if old.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
+    return Path(tempfile.mkdtemp(prefix=f".{outdir.name}.stage-{os.getpid()}-", dir=outdir.parent))
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def write_bytes_atomically(path: str | Path, data: bytes) -> None:

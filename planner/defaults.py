@@ -159,6 +159,16 @@ MAX_IMAGE_PX = 20_000
 MAX_POSES_PER_M2 = 20_000.0
 """Densest pose sample a flag may ask for [1/m2] (50 times the default; a 128 m2 site then samples 2.6 million)."""
 
+MAX_TWIN_POSES = 100_000
+"""Most poses one ``vlp-twin`` batch renders (300 by default; a pose takes tens of milliseconds per core)."""
+
+MAX_BLUR_PX = 50.0
+"""Widest optics blur ``vlp-twin --blur-px`` accepts, Gaussian sigma [px]: an LED image is smeared past reading
+long before; a wider kernel only costs time."""
+
+MAX_TRIALS = 10_000
+"""Most trials per test point ``vlp-accuracy --trials`` runs (the paper's 10, times 1,000)."""
+
 MAX_TIME_LIMIT_S = 86_400.0
 """Longest search budget ``--time-limit`` accepts [deterministic s]: a day."""
 

@@ -47,3 +47,9 @@ class PositioningError(PlannerError):
     LEDs, no pose explains the ellipses, more than one place fits)."""
 
     exit_code = ExitCode.CHECK_FAILED
+
+
+class PlannerWarning(UserWarning):
+    """Something the user should fix that does not stop the run (a key file others may read); the command
+    line prints it as ``vlp-NAME: warning: ...`` when the run ends without an error (an error's one line
+    stays the only one)."""

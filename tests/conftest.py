@@ -117,7 +117,9 @@ def minimal_plan(luminaires: list[dict], **sections):
     """A small checked plan (as ``load_plan`` returns it) holding ``luminaires``; ``sections`` replace top-level keys."""
     from planner.plan.file import plan_from_document
 
-    doc = {"format": "vlp-plan/1", "generator": "vlp-plan 0.1.0", "scheme": "unique",
+    ids = [e.get("id") for e in luminaires]
+    doc = {"format": "vlp-plan/1", "generator": "vlp-plan 0.1.0",
+           "scheme": "unique" if len(set(ids)) == len(ids) else "window",  # a unique plan's IDs are distinct
            "code": {"bits": 8, "max_id": 255, "naive_bits": 8, "lower_bound_bits": 8, "efficiency": 0.0,
                     "word_bits": 8},
            "modulation": {"line_code": "manchester", "preamble": "01110001", "chip_rate_hz": 4470.0, "frame_chips": 8,

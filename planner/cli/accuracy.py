@@ -17,7 +17,7 @@ import sys
 
 from planner._files import write_atomically
 from planner.cli import common as cli
-from planner.defaults import PAPER_RADIUS_M, PAPER_TILTS_DEG
+from planner.defaults import MAX_TRIALS, PAPER_RADIUS_M, PAPER_TILTS_DEG
 from planner.errors import UsageError
 
 
@@ -29,8 +29,8 @@ def build_parser() -> argparse.ArgumentParser:
         "simulation with the paper's method and the full-perspective method on the same images.",
         epilog="Docs: docs/positioning.md.",
     )
-    p.add_argument("--trials", type=cli.positive_int, default=10, metavar="N",
-                   help="trials per test point (default 10, as the paper)")
+    p.add_argument("--trials", type=cli.count_up_to(MAX_TRIALS), default=10, metavar="N",
+                   help=f"trials per test point (default 10, as the paper; at most {MAX_TRIALS:,})")
     p.add_argument("--tilts", default=",".join(map(str, PAPER_TILTS_DEG)), metavar="DEG,...",
                    help="tilts to test [deg] (default 0,20,30,40)")
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
@@ -50,7 +50,7 @@ def _tilts(text: str) -> list[float]:
     except ValueError:
         tilts = []
     if not tilts or not all(0 <= t < 90 for t in tilts):
-        raise UsageError(f"--tilts {text!r}: expected degrees from 0 to below 90, separated by commas")
+        raise UsageError(f"--tilts {cli.shown(text)}: expected degrees from 0 to below 90, separated by commas")
     return tilts
 
 

@@ -106,7 +106,13 @@ def read_gray(path: str) -> np.ndarray:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
     # The sensor's own orientation (EXIF rotation ignored): its rows are the rolling shutter's, and the app's frames
     # come unrotated.
-    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION) if data.size else None
+    from planner.photo.read import check_size
+
+    check_size(data.tobytes(), path)
+    try:
+        image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION) if data.size else None
+    except cv2.error:  # OpenCV's own pixel cap or a corrupt stream
+        image = None
     if image is None:
         raise InputError(f"{path}: not an image OpenCV reads (give JPEG or PNG photos)")
     return image

@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import traceback
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -36,7 +37,7 @@ from planner.defaults import (
     PRINCIPAL_ERROR_PX,
     UNIT_TO_M,
 )
-from planner.errors import ExitCode, InputError, PlannerError, UsageError
+from planner.errors import ExitCode, InputError, PlannerError, PlannerWarning, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera.model import Camera
@@ -50,13 +51,19 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see {self.prog} --help)")
 
 
+def shown(text: str) -> str:
+    """``text`` quoted for an error line, cut short if long (a 5,000-digit number is not echoed whole)."""
+    quoted = repr(text)
+    return quoted if len(quoted) <= 40 else f"{quoted[:30]}...' ({len(text):,} characters)"
+
+
 def positive_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
         value = 0
     if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {shown(text)}")
     return value
 
 
@@ -65,7 +72,7 @@ def count_up_to(maximum: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         value = positive_int(text)
         if value > maximum:
-            raise argparse.ArgumentTypeError(f"must be at most {maximum:,}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be at most {maximum:,}, got {shown(text)}")
         return value
     return parse
 
@@ -76,9 +83,9 @@ def _number(text: str, minimum: float, strict: bool, maximum: float = math.inf) 
     except ValueError:
         value = math.nan
     if not (value > minimum if strict else value >= minimum) or math.isinf(value):
-        raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a {'positive' if strict else 'non-negative'} number, got {shown(text)}")
     if value > maximum:
-        raise argparse.ArgumentTypeError(f"must be at most {maximum:g}, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be at most {maximum:g}, got {shown(text)}")
     return value
 
 
@@ -89,6 +96,11 @@ def at_most(maximum: float, strict: bool = True) -> Callable[[str], float]:
     return parse
 
 
+def share(text: str) -> float:
+    """A flag type: a share from 0 to 1."""
+    return _number(text, 0.0, False, 1.0)
+
+
 def seed(text: str) -> int:
     """A random seed: a whole number 0 .. 2**32 - 1."""
     try:
@@ -96,7 +108,7 @@ def seed(text: str) -> int:
     except ValueError:
         value = -1
     if not 0 <= value <= MAX_SEED:
-        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {MAX_SEED}, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {MAX_SEED}, got {shown(text)}")
     return value
 
 
@@ -275,12 +287,29 @@ def output_file(flag: str, value: str | None) -> Path | None:
     path = Path(value)
     if not path.resolve().parent.is_dir():
         raise UsageError(f"{flag} {value}: directory {path.parent} does not exist")
+    if path.is_dir():
+        raise UsageError(f"{flag} {value}: is a folder; give a file name in it")
+    if path.exists() and not path.is_file():
+        raise UsageError(f"{flag} {value}: exists and is not a regular file (a device or pipe); give a file name")
     return path
 
 
-def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
+def output_dir(flag: str, value: str | None) -> Path | None:
+    """The folder an option such as ``--save-failures DIR`` names (None if not given), checked before any
+    work: it may not be an existing file, else :class:`UsageError` naming the flag."""
+    if not value:
+        return None
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{flag} {value}: exists and is not a folder; give a folder, or a name not yet taken")
+    return path
+
+
+def site_key(path: str | Path | None, *, env: bool = True, warn: bool = True) -> bytes:
     """The site key from ``--key-file`` (hex digits, whitespace ignored, or raw bytes), else from
-    ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md)."""
+    ``VLP_SITE_KEY`` (hex) when ``env``; 16 to 64 bytes (docs/protocol.md). A key file every user may read is
+    warned about when ``warn`` (:class:`~planner.errors.PlannerWarning`, printed by :func:`console_main` after a
+    run that ends without error, so an error stays the only line)."""
     from planner._files import read_bytes
     from planner.flash.keys import KEY_FILE_MAX_BYTES, readable_by_all, site_key_from
 
@@ -289,9 +318,9 @@ def site_key(path: str | Path | None, *, env: bool = True) -> bytes:
             raw = read_bytes(path, "key file", "cannot read (no such file)", max_bytes=KEY_FILE_MAX_BYTES)
         except InputError as exc:
             raise UsageError(f"--key-file {exc}") from None
-        if readable_by_all(path):
-            print(f"warning: --key-file {path} is readable by every user of this machine: chmod 600 {path}",
-                  file=sys.stderr)
+        if warn and readable_by_all(path):  # a warning, not a refusal: the key may have leaked, the job goes on
+            warnings.warn(PlannerWarning(f"--key-file {path} is readable by every user of this machine: "
+                                         f"chmod 600 {path}"), stacklevel=2)
         where, from_file = f"--key-file {path}", True
     elif env and os.environ.get("VLP_SITE_KEY"):
         raw, where, from_file = os.environ["VLP_SITE_KEY"].encode("utf-8", "surrogateescape"), "VLP_SITE_KEY", False
@@ -352,7 +381,15 @@ def console_main(argv: list[str] | None, command: Callable[[list[str] | None], i
 
 def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str, verbose: bool) -> int:
     try:
-        return command(argv)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlannerWarning)
+            code = command(argv)
+        for w in caught:  # after the run: a run that fails prints its one error line alone
+            if issubclass(w.category, PlannerWarning):
+                print(f"{name}: warning: {one_line(str(w.message))}", file=sys.stderr)
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        return code
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()
@@ -367,6 +404,13 @@ def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], nam
     except KeyboardInterrupt:
         print(f"{name}: interrupted; no output was written", file=sys.stderr)
         return ExitCode.INTERRUPTED
+    except OSError as exc:  # the system refused a read or write the checks could not foresee (a full disk)
+        if verbose:
+            traceback.print_exc()
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{name}: error: {one_line(where)}{exc.strerror or exc}; nothing was written there (free space or "
+              "choose another place)", file=sys.stderr)
+        return ExitCode.INPUT
     except Exception as exc:  # a bug: still one line, unless asked for more
         if verbose:
             traceback.print_exc()

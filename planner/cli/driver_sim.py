@@ -108,7 +108,7 @@ def _send(master: int, data: bytes) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; raises :class:`PlannerError` on bad arguments."""
     args = _parser().parse_args(argv)
-    key = cli.site_key(args.key_file, env=False)
+    key = cli.site_key(args.key_file, env=False, warn=False)  # a test double: vlp-flash warns about the key
     sim_only = {"--faults": args.faults, "--flash-dir": args.flash_dir, "--slot-size": args.slot_size,
                 "--max-block": args.max_block, "--block-write-us": args.block_write_us}
     avr_only = {"--eeprom-dir": args.eeprom_dir, "--trace": args.trace, "--build-dir": args.build_dir}

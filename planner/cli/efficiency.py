@@ -34,13 +34,13 @@ def _sizes(text: str) -> list[int]:
         sizes = []
     if not sizes or not all(4 <= n <= MAX_SIZE for n in sizes):
         raise argparse.ArgumentTypeError(f"expected luminaire counts from 4 to {MAX_SIZE} separated by commas, "
-                                          f"got {text!r}")
+                                          f"got {cli.shown(text)}")
     return sorted(set(sizes))
 
 
 def _count(text: str) -> int:
-    if not text.isdigit():
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}")
+    if not text.isdigit() or len(text) > 9 or int(text) > MAX_SIZE:
+        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {MAX_SIZE}, got {cli.shown(text)}")
     return int(text)
 
 

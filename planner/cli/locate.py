@@ -68,7 +68,7 @@ def _pose(text: str, flag: str = "--simulate") -> tuple[np.ndarray, np.ndarray]:
     except ValueError:
         vals = []
     if len(vals) != 6 or not all(map(math.isfinite, vals)):
-        raise UsageError(f"{flag} {text!r}: expected six numbers X,Y,Z,TILT,AZ,ROLL (metres, degrees)")
+        raise UsageError(f"{flag} {cli.shown(text)}: expected six numbers X,Y,Z,TILT,AZ,ROLL (metres, degrees)")
     return np.array(vals[:3]), rotation_from_angles(*np.radians(vals[3:]))[0]
 
 

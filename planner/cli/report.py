@@ -53,6 +53,7 @@ def main(argv: list[str] | None = None) -> int:
 
     plan_path = Path(args.plan)
     plan = load_plan(plan_path)
+    plan.check_verdict_current(str(plan_path))
     digest = plan_hash(plan_path.read_text("utf-8"))
     journal_path = Path(args.journal) if args.journal else plan_path.with_name("as-built.json")
     if args.journal and not journal_path.is_file():

@@ -20,7 +20,14 @@ from typing import TYPE_CHECKING, Any
 
 from planner._files import write_bytes_atomically
 from planner.cli import common as cli
-from planner.defaults import ACCELEROMETER_SIGMA_DEG, SENSOR_BLUR_PX, SENSOR_EXPOSURE_S, SENSOR_READ_NOISE_DN
+from planner.defaults import (
+    ACCELEROMETER_SIGMA_DEG,
+    MAX_BLUR_PX,
+    MAX_TWIN_POSES,
+    SENSOR_BLUR_PX,
+    SENSOR_EXPOSURE_S,
+    SENSOR_READ_NOISE_DN,
+)
 from planner.defaults import TWIN_TOLERANCE_M as TOLERANCE_M
 from planner.errors import ExitCode, UsageError
 
@@ -47,8 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("poses")
     g.add_argument("--pose", metavar="X,Y,Z,TILT,AZ,ROLL", help="one pose: position [m], tilt, azimuth, roll [deg]")
     g.add_argument("--png", metavar="FILE", help="with --pose: write the rendered frame as PNG")
-    g.add_argument("--poses", type=cli.positive_int, default=300, metavar="N",
-                   help="batch: N random poses where the plan is decodable (default 300)")
+    g.add_argument("--poses", type=cli.count_up_to(MAX_TWIN_POSES), default=300, metavar="N",
+                   help=f"batch: N random poses where the plan is decodable (default 300, at most {MAX_TWIN_POSES:,})")
     g.add_argument("--seed", type=cli.seed, default=0, help="seed of the poses, phases and noise (default 0)")
     g.add_argument("--jobs", type=cli.positive_int, default=os.cpu_count() or 1, metavar="J",
                    help="worker processes for a batch (default: one per core)")
@@ -58,11 +65,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "read); default: the plan's camera")
     g.add_argument("--exposure-us", type=cli.positive_float, default=SENSOR_EXPOSURE_S * 1e6, metavar="US",
                    help=f"row exposure [us] (default {SENSOR_EXPOSURE_S * 1e6:g})")
-    g.add_argument("--blur-px", type=float, default=SENSOR_BLUR_PX, metavar="PX",
-                   help=f"optics blur, Gaussian sigma [px] (default {SENSOR_BLUR_PX:g})")
-    g.add_argument("--read-noise-dn", type=float, default=SENSOR_READ_NOISE_DN, metavar="DN",
+    g.add_argument("--blur-px", type=cli.at_most(MAX_BLUR_PX, strict=False), default=SENSOR_BLUR_PX, metavar="PX",
+                   help=f"optics blur, Gaussian sigma [px] (default {SENSOR_BLUR_PX:g}, at most {MAX_BLUR_PX:g})")
+    g.add_argument("--read-noise-dn", type=cli.at_most(255.0, strict=False), default=SENSOR_READ_NOISE_DN, metavar="DN",
                    help=f"read noise sigma [DN of 255] (default {SENSOR_READ_NOISE_DN:g})")
-    g.add_argument("--off-level", type=float, default=0.0, metavar="SHARE",
+    g.add_argument("--off-level", type=cli.share, default=0.0, metavar="SHARE",
                    help="light of an 'off' chip as a share of 'on' (default 0)")
     g.add_argument("--accelerometer-deg", type=cli.non_negative_float, default=ACCELEROMETER_SIGMA_DEG, metavar="DEG",
                    help="gravity plans: RMS error of the accelerometer's vertical, in degrees "
@@ -70,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("grading")
     g.add_argument("--max-error", type=cli.positive_float, default=TOLERANCE_M, metavar="M",
                    help=f"a fix this close to the truth counts as located [m] (default {TOLERANCE_M:g})")
-    g.add_argument("--min-success", type=float, default=0.99, metavar="SHARE",
+    g.add_argument("--min-success", type=cli.share, default=0.99, metavar="SHARE",
                    help="batch: exit 3 below this success rate (default 0.99)")
     cli.common_flags(p, "print the result as JSON")
     return p
@@ -153,7 +160,7 @@ def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
         if show:
             print(file=sys.stderr)
     if args.save_failures:
-        out = Path(args.save_failures)
+        out = Path(args.save_failures)  # checked by main() before any frame is rendered
         out.mkdir(parents=True, exist_ok=True)
         for k, r in enumerate(results):
             if not r.ok:
@@ -167,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.png and not args.pose:
         raise UsageError("--png needs --pose (a batch writes failed frames with --save-failures DIR)")
     cli.output_file("--png", args.png)  # its folder must exist before any frame is rendered
+    cli.output_dir("--save-failures", args.save_failures)
     sensor = _sensor(args)
     from planner.plan.file import load_plan
     from planner.twin.twin import summary

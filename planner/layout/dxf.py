@@ -85,6 +85,11 @@ def load_drawing(path: str | Path) -> tuple[Drawing, list[str]]:
     return doc, [note]
 
 
+DENSE_PAIRS_PER_PART = 50
+"""Parts closer than their merge size, per part, beyond which a unit guess does not merge (a luminaire is a
+handful of parts, never 50)."""
+
+
 def _clusters(xy_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
     """Cluster label per part, numbered in order of each cluster's first part."""
     n = len(xy_m)
@@ -133,7 +138,17 @@ class _Parts:
         spacing = height = None
         if len(self.xyz):
             xy = self.xyz[:, :2] * scale
-            labels = _clusters(xy, self.merge_radius_m(scale, given_m))
+            radius = self.merge_radius_m(scale, given_m)
+            tree = cKDTree(xy)
+            reach = float(np.maximum(0.5 * radius, MERGE_MIN_M).max())
+            if len(xy) > DENSE_PAIRS_PER_PART and tree.count_neighbors(tree, reach) > DENSE_PAIRS_PER_PART * len(xy):
+                # At this scale the parts lie far closer than the size they merge by: no unit the drawing is in.
+                # Merging would list billions of pairs (gigabytes); the parts' own spacing, on a sample, says so.
+                sample = xy[np.random.default_rng(0).choice(len(xy), min(len(xy), 2_000), replace=False)]
+                dist = cast(np.ndarray, tree.query(sample, k=2)[0])
+                z = self.xyz[:, 2][self.xyz[:, 2] != 0] * scale
+                return Figures(float(np.median(dist[:, 1])), float(np.median(z)) if len(z) else None, None)
+            labels = _clusters(xy, radius)
             counts = np.bincount(labels)
             centres = np.column_stack([np.bincount(labels, xy[:, i]) / counts for i in (0, 1)])
             if len(centres) >= 2:

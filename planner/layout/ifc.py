@@ -13,6 +13,7 @@ storey holds fixtures, ``storey`` chooses.
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -33,20 +34,30 @@ def open_model(path: str | Path):
     import ifcopenshell
 
     try:
-        with open(path, "rb") as stream:
-            stream.seek(0, 2)
-            stream.seek(max(0, stream.tell() - 256))
-            tail = stream.read()
+        data = Path(path).read_bytes()
     except OSError as exc:
         raise InputError(f"{path}: cannot read the file ({exc.strerror or exc}); check its permissions") from None
-    if tail.strip() and b"END-ISO-10303-21" not in tail.upper():  # ifcopenshell reads a cut-off file silently
+    if data.strip() and b"END-ISO-10303-21" not in data[-256:].upper():  # ifcopenshell reads a cut-off file silently
         raise InputError(f"{path}: the model ends before END-ISO-10303-21; (cut off in a copy or a download?); "
                          "export or copy it again")
+    _check_references(data, path)
     try:
         return ifcopenshell.open(str(path))
     except Exception as exc:  # ifcopenshell raises its own and plain errors alike: not an IFC we can read
         raise InputError(f"{path}: not a readable IFC model ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "
                          "export the model as IFC2X3 or IFC4 (STEP, .ifc)") from None
+
+
+def _check_references(data: bytes, path: str | Path) -> None:
+    """:class:`InputError` if an entity refers to one the file does not define (``#12`` with no ``#12=``):
+    ifcopenshell reads such a file and hands back None where the placement or shape should be."""
+    body = re.sub(rb"'(?:[^']|'')*'", b"''", data)  # references inside text ('Room #4') are no references
+    defined = set(re.findall(rb"^\s*#(\d+)\s*=", body, re.M))
+    dangling = set(re.findall(rb"#(\d+)", body)) - defined
+    if dangling:
+        first = min(dangling, key=int).decode()
+        raise InputError(f"{path}: refers to #{first}, which the model does not define ({len(dangling)} such "
+                         "reference(s)); the file was damaged or edited by hand; export the model again")
 
 
 def light_fixtures(model) -> list:

@@ -10,6 +10,7 @@ checked afterwards by :func:`~planner.layout.model.check_layout`.
 from __future__ import annotations
 
 import csv
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -134,7 +135,10 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     if not lines:
         raise InputError(f"{path}: no rows; expected a header with x,y and one row per luminaire")
     reader = csv.DictReader(lines)
-    header = [h.strip().lower() for h in reader.fieldnames or []]
+    try:
+        header = [h.strip().lower() for h in reader.fieldnames or []]
+    except csv.Error as exc:  # a field over the csv module's limit (128 KiB), a stray NUL
+        raise InputError(f"{path}: line {numbers[0]}: not a CSV row ({exc})") from None
     if "x" not in header or "y" not in header:
         raise InputError(f"{path}: line {numbers[0]}: header must name columns x and y (found {', '.join(header)})")
     if len(lines) - 1 > MAX_LUMINAIRES:
@@ -144,7 +148,7 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
     scale = _unit_scale(unit, str(path))
     defaults = _defaults(mount_height_m, radius_m, None, None, scale)
     lums = []
-    for k, raw in enumerate(reader):
+    for k, raw in enumerate(_rows(reader, path, numbers)):
         number = numbers[k + 1] if k + 1 < len(numbers) else numbers[-1]
         where = f"{path}: line {number}"
         if None in raw:  # DictReader's key for fields beyond the header: a stray comma, e.g. "1,5" for 1.5
@@ -155,3 +159,17 @@ def read_csv(path: str | Path, *, units: str | None = None, mount_height_m: floa
         lums.append(_luminaire(row, k, scale, defaults, {"file": path.name, "line": number}))
     reason = "given with --units" if units else ("stated in the file" if unit_in_file else "the default")
     return Layout(tuple(lums), None, str(path), unit, reason)
+
+
+def _rows(reader: csv.DictReader, path: Path, numbers: list[int]) -> Iterator[dict]:
+    """The rows of ``reader``; a row the csv module cannot split (a field over its 128 KiB limit, a NUL)
+    raises :class:`InputError` naming its line."""
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            line = numbers[min(reader.line_num, len(numbers) - 1)]  # the row that failed is not counted
+            raise InputError(f"{path}: line {line}: not a CSV row ({exc})") from None
+        yield row

@@ -26,7 +26,7 @@ import numpy as np
 
 from planner.camera.model import Camera
 from planner.decode.image import FrameFormat
-from planner.defaults import SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
+from planner.defaults import MAX_IMAGE_PX, SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
 from planner.errors import InputError
 from planner.photo.decode import PhotoBlob, decode_photo
 
@@ -46,13 +46,52 @@ SUFFIXES = (".jpg", ".jpeg", ".png")
 """The photo files ``vlp-report --photos`` reads from a folder."""
 
 
+def header_size(data: bytes) -> tuple[int, int] | None:
+    """Width and height [px] a PNG or JPEG header states, read before any pixel is decoded (None: neither format,
+    or no size found in the header)."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR":
+        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if data[:2] != b"\xff\xd8":
+        return None
+    k = 2
+    while k + 9 <= len(data):  # JPEG markers up to the frame header (SOF0-15 but DHT C4, JPG C8, DAC CC)
+        if data[k] != 0xFF:
+            return None
+        marker = data[k + 1]
+        if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7 or marker == 0xFF:
+            k += 1 if marker == 0xFF else 2
+            continue
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            return int.from_bytes(data[k + 7:k + 9], "big"), int.from_bytes(data[k + 5:k + 7], "big")
+        k += 2 + int.from_bytes(data[k + 2:k + 4], "big")
+    return None
+
+
+def check_size(data: bytes, path: str | Path) -> None:
+    """:class:`InputError` if the header of the image ``data`` (from ``path``) states a side over
+    :data:`~planner.defaults.MAX_IMAGE_PX`: refused before decoding, which would take gigabytes."""
+    size = header_size(data)
+    if size is not None and max(size) > MAX_IMAGE_PX:
+        raise InputError(f"{path}: the image header states {size[0]:,} x {size[1]:,} px, more than the "
+                         f"{MAX_IMAGE_PX:,} px a side any phone takes; give the photo as the phone saved it")
+
+
 def read_image(path: str | Path) -> np.ndarray:
-    """The pixels of a JPEG or PNG as saved, grey or BGR (uint8 or uint16); :class:`InputError` if unreadable."""
+    """The pixels of a JPEG or PNG as saved, grey or BGR (uint8 or uint16); :class:`InputError` if unreadable
+    or if its header states an image larger than any phone's (:func:`check_size`)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such photo; give a JPEG or PNG the phone took")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    check_size(data, path)
     flags = cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_IGNORE_ORIENTATION
-    image = cv2.imread(str(path), flags)
+    try:
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), flags) if data else None
+    except cv2.error:  # OpenCV's own pixel cap (CV_IO_MAX_IMAGE_PIXELS) or a corrupt stream
+        image = None
     if image is None:
         raise InputError(f"{path}: not an image OpenCV can read; give the photo as JPEG or PNG")
     if image.dtype not in (np.uint8, np.uint16):

@@ -10,6 +10,8 @@ mappings; keys this version does not read are kept too.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from collections import Counter
 from functools import cached_property
@@ -215,6 +217,19 @@ class PlanFile(_Section):
         for k, e in enumerate(self.luminaires):
             if e.id > self.code.max_id:
                 raise ValueError(f"luminaires[{k}] ({e.name}): id {e.id} exceeds code.max_id {self.code.max_id}")
+        ids = [e.id for e in self.luminaires]
+        if self.code.max_id > 2**self.code.bits:
+            raise ValueError(f"code.bits {self.code.bits} and code.max_id {self.code.max_id} disagree with the "
+                             f"luminaires' IDs (largest {max(ids)}, sent as id - 1 in code.bits bits): the file was "
+                             "edited")
+        alphabet = (self.code.model_extra or {}).get("alphabet")
+        if (self.scheme == "unique" and len(set(ids)) != len(ids)) or (
+                isinstance(alphabet, int) and alphabet != len(set(ids))):
+            uses = Counter(ids)
+            twice = next(e for e in self.luminaires if uses[e.id] > 1) if self.scheme == "unique" else None
+            raise ValueError(f"luminaire {twice.name!r}'s id {twice.id} is used more than once in a unique-ID plan"
+                             if twice else f"{len(set(ids))} distinct IDs but code.alphabet says {alphabet}: the "
+                             "file was edited")
         framed = sum(e.frame is not None for e in self.luminaires)
         if framed not in (0, len(names)):
             raise ValueError(f"{framed} of {len(names)} luminaires have a frame: all or none must")
@@ -279,6 +294,14 @@ class PlanFile(_Section):
                              "re-plan, or restore the value vlp-plan wrote")
         return float(cap)
 
+    def check_verdict_current(self, where: str) -> None:
+        """:class:`InputError` if the luminaires (names, positions, IDs) were edited since the plan's verdict was
+        written (``verification.luminaires_sha256``; plans written before 2026-12-04 carry none and pass)."""
+        recorded = (self.verification.model_extra or {}).get("luminaires_sha256") if self.verification else None
+        if recorded is not None and recorded != luminaires_digest(self.scheme, self.luminaires):
+            raise InputError(f"{where}: the luminaires were edited since the plan was verified, so its verdict no "
+                             "longer holds; run vlp-verify on it, or vlp-plan again")
+
     def camera_model(self) -> Camera:
         """The camera the plan was made for."""
         return self.camera.to_camera()
@@ -286,6 +309,17 @@ class PlanFile(_Section):
     def document(self) -> dict:
         """The plan as a plain mapping (what templates see), with the keys this version does not read."""
         return self.model_dump(mode="python")
+
+
+def luminaires_digest(scheme: str, luminaires: list) -> str:
+    """Short hash of what a verdict depends on: the scheme and each luminaire's name, position, radius and ID
+    (entries as mappings or :class:`Entry`); recorded with the verdict, compared on reading."""
+    def row(e: Any) -> list:
+        v = e if isinstance(e, dict) else {k: getattr(e, k) for k in ("name", "x", "y", "z", "radius", "id")}
+        return [v["name"], float(v["x"]), float(v["y"]), float(v["z"]), float(v["radius"]), int(v["id"])]
+
+    text = json.dumps([scheme, *(row(e) for e in luminaires)], separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
 def plan_from_document(doc: object, where: str) -> PlanFile:

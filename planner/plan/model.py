@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import yaml
 
 from planner import __version__
-from planner.plan.file import FORMAT
+from planner.plan.file import FORMAT, luminaires_digest
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.advice.advise import Advice
@@ -81,6 +81,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
     """The ``plan.yaml`` mapping of a plan."""
     a, g, lay = plan.assignment, plan.graph, plan.layout
     cross = len(g.cross_edges)
+    entries = plan.entries()
     return {
         "format": FORMAT,
         "generator": f"vlp-plan {__version__}",
@@ -116,14 +117,15 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
         "schemes_considered": plan.considered,
         **({"receiver": plan.receiver.summary()} if plan.receiver is not None else {}),
         "camera": plan.camera.to_dict(),
-        "verification": (plan.verification.summary([lum.name for lum in lay.luminaires])
+        "verification": ({**plan.verification.summary([lum.name for lum in lay.luminaires]),
+                          "luminaires_sha256": luminaires_digest(a.scheme, entries)}  # an edit since is caught
                          if plan.verification is not None else None),
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),
         "luminaire_count": len(lay.luminaires),  # written before the list: a file cut short is caught
-        "luminaires": plan.entries(),
+        "luminaires": entries,
     }
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner._files import staging_folder
 from planner.advice.advise import COVERAGE_GOAL, Advice, Site, advise
 from planner.advice.frames import FrameLimits
 from planner.camera.model import Camera
@@ -253,7 +253,7 @@ def staged_output(outdir: Path, journal_hint: str) -> Iterator[Path]:
                          + journal_hint)
     try:
         outdir.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=outdir.parent))
+        stage = staging_folder(outdir)  # removes what a killed run (kill -9) left
     except OSError as exc:
         raise UsageError(f"-o {outdir}: cannot write there ({exc.strerror}); choose another -o") from None
     try:

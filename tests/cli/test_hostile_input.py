@@ -23,7 +23,7 @@ import pytest
 import yaml
 
 from conftest import ROOT, grid_xy
-from planner.cli import flash, locate, plan, report, twin, verify
+from planner.cli import calibrate, flash, locate, plan, report, twin, verify
 from planner.plan.model import plan_hash
 
 KEY = bytes(range(32))
@@ -346,13 +346,33 @@ def test_outputs_that_cannot_be_written_are_one_line(tmp_path, capsys):
 
 
 def test_the_cases_add_up_to_hundreds(tmp_path):
-    """The Done-when count, from the case lists the tests above run: at least 500 malformed inputs."""
+    """The Done-when counts (issues 15 and 36), from the case lists the hostile input tests run: at least 500
+    malformed inputs in all, and at least 350 parametrized cases (one test each) across every command."""
+    import test_hostile_files as files
+    import test_hostile_flags as flags
+
     plan_runs = len(_plan_variants("x" * 1000)) * len(_plan_commands(tmp_path / "p.yaml", tmp_path))
     counted = {"layout YAML": len(LAYOUT_CASES), "layout CSV": len(CSV_CASES), "DXF": len(_dxf_cases(tmp_path)),
                "camera YAML": len(CAMERA) * len(BAD_VALUES), "plan.yaml x commands": plan_runs,
                "observation JSON": len(OBSERVATION_FIELDS) * len(BAD_VALUES) + OBSERVATION_EXTRAS,
                "bus map": len(BUS_MAPS), "journal": len(JOURNALS), "unwritable places": UNWRITABLE}
     assert sum(counted.values()) >= 500, counted
+    per_command: dict[str, int] = {"plan": len(LAYOUT_CASES) + len(CSV_CASES) + 2}
+    for name, _, _ in flags.FLAG_CASES:
+        per_command[name] = per_command.get(name, 0) + 1
+    file_cases = ([(files.FILE_FLAGS | files.DIR_FLAGS)[flag][0] for flag, _ in files.OUTPUT_CASES]
+                  + [calibrate if u.startswith("calibrate") else locate for _, u in files.PHOTO_CASES]
+                  + [verify if n == "verify" else report for _, n in files.EDIT_CASES]
+                  + [files.BOUND_CASES[w][0] for w in files.BOUND_CASES])
+    for module in file_cases:
+        name = module.__name__.rsplit(".", 1)[-1]
+        per_command[name] = per_command.get(name, 0) + 1
+    per_command["plan"] += len(files.FULL_DISK) + 8 + 1  # full disk (plan, verify, twin run in a child), IFC, staging
+    per_command["inspect"] += 1  # the dense drawing
+    text = len(files.TEXT_IDS)
+    assert sum(per_command.values()) + text >= 350, per_command
+    commands = {"plan", "verify", "locate", "accuracy", "flash", "efficiency", "report", "twin", "inspect", "calibrate"}
+    assert commands <= {n for n, k in per_command.items() if k >= 5}, per_command  # vlp-driver-sim: flash's tests
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])

@@ -46,10 +46,13 @@ def test_each_driver_has_its_own_key_derived_from_the_site_key():
         driver_key(KEY, "")
 
 
-def test_a_key_file_every_user_can_read_is_warned_about(capsys):
+def test_a_key_file_every_user_can_read_is_warned_about():
     import stat
     import tempfile
+    import warnings
     from pathlib import Path
+
+    from planner.errors import PlannerWarning
 
     folder = Path(tempfile.mkdtemp())  # under /tmp, which every user may search
     try:
@@ -57,15 +60,18 @@ def test_a_key_file_every_user_can_read_is_warned_about(capsys):
         key = folder / "site.key"
         key.write_text(bytes(range(32)).hex())
         key.chmod(0o644)
-        assert site_key(key) == bytes(range(32))
-        err = capsys.readouterr().err
-        assert err == f"warning: --key-file {key} is readable by every user of this machine: chmod 600 {key}\n"
-        assert bytes(range(32)).hex() not in err
+        with pytest.warns(PlannerWarning) as said:
+            assert site_key(key) == bytes(range(32))
+        assert [str(w.message) for w in said] == [
+            f"--key-file {key} is readable by every user of this machine: chmod 600 {key}"]
+        assert bytes(range(32)).hex() not in str(said[0].message)
         for private in ((key, 0o600), (folder, 0o700)):  # the file, or its folder, closed to others: no warning
             key.chmod(0o644)
             folder.chmod(0o755)
             private[0].chmod(private[1])
-            assert site_key(key) == bytes(range(32)) and capsys.readouterr().err == ""
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", PlannerWarning)
+                assert site_key(key) == bytes(range(32))
         assert not key.stat().st_mode & stat.S_IROTH or not folder.stat().st_mode & stat.S_IXOTH
     finally:
         folder.chmod(0o700)

@@ -59,6 +59,7 @@ def provision(path: Path, address: int, serial: str, key: bytes) -> None:
                              "move it away or use another --eeprom-dir")
         with open(path, "r+b") as f:
             f.write(provision_block(address, serial, key))
+        path.chmod(0o600)  # it holds the driver's key
     except OSError as exc:
         raise UsageError(f"{path}: cannot use as an EEPROM image ({exc.strerror or exc})") from None
 
