@@ -222,14 +222,10 @@ class PlanFile(_Section):
             raise ValueError(f"code.bits {self.code.bits} and code.max_id {self.code.max_id} disagree with the "
                              f"luminaires' IDs (largest {max(ids)}, sent as id - 1 in code.bits bits): the file was "
                              "edited")
-        alphabet = (self.code.model_extra or {}).get("alphabet")
-        if (self.scheme == "unique" and len(set(ids)) != len(ids)) or (
-                isinstance(alphabet, int) and alphabet != len(set(ids))):
+        if self.scheme == "unique" and len(set(ids)) != len(ids):  # an edited reuse plan is vlp-verify's to judge
             uses = Counter(ids)
-            twice = next(e for e in self.luminaires if uses[e.id] > 1) if self.scheme == "unique" else None
-            raise ValueError(f"luminaire {twice.name!r}'s id {twice.id} is used more than once in a unique-ID plan"
-                             if twice else f"{len(set(ids))} distinct IDs but code.alphabet says {alphabet}: the "
-                             "file was edited")
+            twice = next(e for e in self.luminaires if uses[e.id] > 1)
+            raise ValueError(f"luminaire {twice.name!r}'s id {twice.id} is used more than once in a unique-ID plan")
         framed = sum(e.frame is not None for e in self.luminaires)
         if framed not in (0, len(names)):
             raise ValueError(f"{framed} of {len(names)} luminaires have a frame: all or none must")

@@ -251,7 +251,7 @@ def _plan_edits() -> dict[str, tuple[str, object, str]]:
     return {"unique plan, one ID twice": ("unique", dup, "used more than once"),
             "bit width below the IDs": ("plan", bits, "disagree"),
             "an ID beyond code.max_id": ("plan", max_id, "exceeds code.max_id"),
-            "alphabet short of the IDs": ("plan", dup, "distinct IDs"),
+            "one ID given to two luminaires": ("plan", dup, "edited since"),
             "a luminaire moved since its verdict": ("plan", moved, "edited since"),
             "two IDs swapped since the verdict": ("plan", renumbered, "edited since")}
 
