@@ -108,12 +108,8 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
     clock.stage("frames")
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
     modulation = _modulate(assignment, check, mode.smallest_image_rows(xyz, radii, cam, sample), options)
-    if options.verify and options.error_poses_per_m2 > 0:
-        clock.stage("error map", f"at most {ERROR_MAX_POSES} poses")
-    accuracy = _accuracy(layout, radii, mode, sample, options)
-    if verification is not None:
-        clock.stage("advice")
-    advice = _advice(layout, radii, mode, verification, options)
+    accuracy = _accuracy(layout, radii, mode, sample, options, clock)
+    advice = _advice(layout, radii, mode, verification, options, clock)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
 
 
@@ -136,11 +132,12 @@ def _modulate(assignment: Assignment, check: CheckCode, rows: float, options: Pl
                     max_video_frames=options.max_video_frames, mcu_clock_hz=options.mcu_clock_hz)
 
 
-def _accuracy(layout: Layout, radii: np.ndarray, mode: Receiver, sample: PoseSample,
-              options: PlanOptions) -> SiteAccuracy | None:
+def _accuracy(layout: Layout, radii: np.ndarray, mode: Receiver, sample: PoseSample, options: PlanOptions,
+              clock: Timings) -> SiteAccuracy | None:
     """The error map of the mode's accuracy model, when verifying with an error-map density."""
     if not (options.verify and options.error_poses_per_m2 > 0):
         return None
+    clock.stage("error map", f"at most {ERROR_MAX_POSES} poses")
     sigma_rad = float(np.radians(options.accelerometer_sigma_deg))
     return site_accuracy(layout.xyz, radii, layout.outline, options.camera, mode.accuracy_method(options.locate_method),
                          per_m2=options.error_poses_per_m2, seed=options.seed, sample=sample,
@@ -148,10 +145,11 @@ def _accuracy(layout: Layout, radii: np.ndarray, mode: Receiver, sample: PoseSam
 
 
 def _advice(layout: Layout, radii: np.ndarray, mode: Receiver, verification: Verification | None,
-            options: PlanOptions) -> Advice | None:
+            options: PlanOptions, clock: Timings) -> Advice | None:
     """What would make the site work, from the verification (None unverified)."""
     if verification is None:
         return None
+    clock.stage("advice")
     filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
     share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
     frames = FrameLimits(options.line_code, options.check_distance, options.driver_max_hz, options.video_fps,
