@@ -243,6 +243,35 @@ def residential(z_noise: tuple[float, ...] = (9.9e-13, -1.5e-4), insunits: int =
     return doc, _sorted(expected)
 
 
+def office_48(spacing_mm: float = 2400.0):
+    """A millimetre office of 48 ``LED PANEL 600`` luminaires at 2.4 m (6 x 8) on ``E-LIGHTING``, with
+    light switches, ``COLUMN`` blocks (a 400 mm square) and a ``COL-2`` block on the same layer, and
+    a room outline on ``A-WALL``. Returns the drawing and the luminaires' centres [m]."""
+    doc = new_drawing(4, "R2013")
+    for layer in ("E-LIGHTING", "A-WALL"):
+        doc.layers.add(layer)
+    panel = doc.blocks.new("LED PANEL 600")
+    _rectangle(panel, 600, 600)
+    doc.blocks.new("SWITCH 2G").add_circle((0, 0), 40)
+    _rectangle(doc.blocks.new("COLUMN"), 400, 400)
+    _rectangle(doc.blocks.new("COL-2"), 500, 500)
+    msp = doc.modelspace()
+    s = spacing_mm
+    centres = []
+    for j in range(8):
+        for i in range(6):
+            x, y = s / 2 + i * s, s / 2 + j * s
+            msp.add_blockref("LED PANEL 600", (x, y, 2800), dxfattribs={"layer": "E-LIGHTING"})
+            centres.append((x / 1000, y / 1000))
+    for j in range(1, 8, 2):
+        msp.add_blockref("SWITCH 2G", (100, j * s), dxfattribs={"layer": "E-LIGHTING"})
+        for i in (2, 4):
+            msp.add_blockref("COLUMN", (i * s, j * s), dxfattribs={"layer": "E-LIGHTING"})
+    msp.add_blockref("COL-2", (3 * s, 4 * s), dxfattribs={"layer": "E-LIGHTING"})
+    msp.add_lwpolyline([(0, 0), (6 * s, 0), (6 * s, 8 * s), (0, 8 * s)], close=True, dxfattribs={"layer": "A-WALL"})
+    return doc, np.array(sorted(centres, key=lambda p: (p[1], p[0])))
+
+
 def converted_panels(cols: int = 5, rows: int = 4, spacing_mm: float = 2400.0, offset_mm: float = 120.0
                      ) -> tuple[Drawing, np.ndarray]:
     """A DWG converted to DXF: ``$INSUNITS`` = metres over millimetre geometry, circle-less symbols.

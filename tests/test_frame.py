@@ -3,6 +3,7 @@
 
 import numpy as np
 import pytest
+import yaml
 
 from conftest import ROOT
 from planner.errors import InputError, PlanningError
@@ -90,9 +91,24 @@ def test_one_frame_is_accepted_when_two_do_not_fit():
     assert t.frames_in_image == 1 and t.frame_fit_min_hz <= t.chip_rate_hz <= t.resolution_max_hz
 
 
-def test_vlp_plan_refuses_a_driver_too_slow(tmp_path, capsys):
+def test_vlp_plan_with_a_driver_too_slow_writes_the_plan_and_advice_without_frames(tmp_path, capsys):
+    """Verified, the plan is still written with its verdict and advice (exit 3); no firmware, and why."""
     from planner.cli.plan import console_main
 
-    code = console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--driver-max-hz", "900"])
+    code = console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--driver-max-hz", "900",
+                         "--no-map", "--no-report"])
+    out, err = capsys.readouterr()
+    assert code == 3 and "without frames or firmware: no chip rate fits" in err and "900 Hz" in err
+    assert "frame    none: no chip rate fits" in out
+    plan = yaml.safe_load((tmp_path / "o" / "plan.yaml").read_text())
+    assert plan["modulation"] is None and plan["no_frames"].startswith("no chip rate fits")
+    assert not (tmp_path / "o" / "firmware").exists()
+
+
+def test_vlp_plan_unverified_refuses_a_driver_too_slow(tmp_path, capsys):
+    from planner.cli.plan import console_main
+
+    code = console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--driver-max-hz", "900",
+                         "--no-verify", "--scheme", "paper"])
     err = capsys.readouterr().err
     assert code == 1 and "no chip rate fits" in err and "900 Hz" in err and not (tmp_path / "o").exists()

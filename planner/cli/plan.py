@@ -63,10 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheme", choices=list(SCHEMES), default="auto",
                    help="ID scheme: paper (the paper's region code), window (shortest IDs with every camera window "
                    "unique), unique (one ID per luminaire), auto (default: the shortest that verifies)")
-    g.add_argument("--receiver", choices=list(RECEIVERS), default="three",
-                   help="receiver the plan is made for: three (default: the paper's, three whole LEDs in view), "
-                   "gravity (two whole LEDs plus the phone's accelerometer), auto (three, or gravity where the "
-                   "three-LED receiver decodes under 90 %% of poses and gravity decodes more); docs/schemes.md")
+    g.add_argument("--receiver", choices=list(RECEIVERS), default="auto",
+                   help="receiver the plan is made for: three (the paper's, three whole LEDs in view), gravity (two "
+                   "whole LEDs plus the phone's accelerometer), auto (default: three wherever its plan is usable, "
+                   "else the mode that decodes more poses; with --no-verify three); docs/schemes.md")
     g.add_argument("--time-limit", type=cli.at_most(MAX_TIME_LIMIT_S, strict=False), default=10.0, metavar="S",
                    help="search budget for irregular layouts, in CP-SAT deterministic seconds (default 10, at most "
                    f"{MAX_TIME_LIMIT_S:g})")
@@ -208,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         "receiver": plan.receiver.summary() if plan.receiver is not None else {"mode": PAPER.name},
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
+        "no_frames": plan.no_frames,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
@@ -228,6 +229,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vlp-plan: plan written, but NOT USABLE: only {100 * v.coverage:.1f} % of sampled poses decode "
               f"({v.count(3)} of {v.poses} see fewer than {few} whole LEDs); see the advice in the summary and "
               "the site report", file=sys.stderr)
+    if plan.no_frames and not unusable:
+        print(f"vlp-plan: plan written, but without frames or firmware: {plan.no_frames}; see the advice",
+              file=sys.stderr)
+        return ExitCode.CHECK_FAILED
     if v is not None and v.conflicts:
         print(f"vlp-plan: plan written, but {v.count(1)} sampled poses are ambiguous under the {plan.assignment.scheme} "
               "scheme; see coverage.png and vlp-verify", file=sys.stderr)
@@ -302,6 +307,8 @@ def _print_summary(s: dict) -> None:
                   f"{m['window_chips']:.1f} chips, advancing {m['frame_offset_chips']:.1f}); hold the phone still")
         else:
             print("           single-frame: one LED image holds a whole frame")
+    elif s["no_frames"]:
+        print(f"  frame    none: {s['no_frames']}; no firmware written")
     a = s["accuracy"]
     if a and a["located"]:
         from planner.positioning.accuracy import method_text

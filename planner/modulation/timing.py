@@ -88,14 +88,14 @@ def timing_per_m2(area: np.ndarray) -> float:
     return min(400.0, TIMING_POSES / max(area_m2(area), 1e-6))
 
 
-def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
+def smallest_window_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample
+                               ) -> float | None:
     """Rows of the smallest LED image in any window over the timing prefix of ``sample`` (the farthest
-    working distance)."""
+    working distance); None if no pose of that prefix sees three whole LEDs (no image to fit a frame into)."""
     poses, win = sample.first(timing_per_m2(sample.area))
     ok = win.covered
     if not ok.any():
-        raise PlanningError("no sampled camera pose sees three whole LEDs: no LED image to fit a frame into; "
-                            "check the luminaire spacing against the camera (docs/camera.md)")
+        return None
     sub = poses.subset(np.flatnonzero(ok))
     t = win.triples[ok]
     return float(disc_image_rows(sub.position, sub.rotation, xyz[t], radii[t], camera).min())

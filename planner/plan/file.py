@@ -199,6 +199,7 @@ class PlanFile(_Section):
     verification: Verification | None = None
     advice: Advice | None = None
     modulation: ModulationFields | None = None
+    no_frames: Text | None = None  # why a plan verified for its advice has no frames
     accuracy: Accuracy | None = None
     outline: list[tuple[Coordinate, Coordinate]] | None = None
     luminaire_count: Annotated[Count, Field(ge=1)] | None = None  # absent in plans written before 2026-12-03

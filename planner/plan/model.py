@@ -47,6 +47,7 @@ class Plan:
     modulation: Modulation | None = None
     advice: Advice | None = None
     receiver: ReceiverChoice | None = None
+    no_frames: str | None = None  # why the plan has no frames (modulation None although planned with them)
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -122,6 +123,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
                          if plan.verification is not None else None),
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
+        **({"no_frames": plan.no_frames} if plan.no_frames else {}),
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),
         "luminaire_count": len(lay.luminaires),  # written before the list: a file cut short is caught

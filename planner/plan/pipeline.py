@@ -31,7 +31,7 @@ from planner.defaults import (
     SCHEMES,
     VIDEO_FPS,
 )
-from planner.errors import UsageError
+from planner.errors import PlanningError, UsageError
 from planner.graph import build_graph
 from planner.layout.model import Layout
 from planner.modulation.frame import line_code
@@ -45,7 +45,7 @@ from planner.positioning.accuracy import ERROR_MAX_POSES, ERROR_POSES_PER_M2, Si
 from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.receivers.base import Job, Receiver
 from planner.receivers.choice import check_receiver, choose
-from planner.receivers.modes import PAPER
+from planner.receivers.modes import AUTO, PAPER
 from planner.verify.verify import (
     AMBIGUOUS,
     TOO_FEW,
@@ -73,7 +73,7 @@ class PlanOptions:
     driver_max_hz: float = DRIVER_MAX_HZ
     install_tolerance_m: float = INSTALL_TOLERANCE_M
     error_terms: ErrorTerms = DEFAULT_TERMS
-    receiver: str = PAPER.name  # a mode of planner.receivers.modes, or "auto"
+    receiver: str = AUTO  # a mode of planner.receivers.modes, or "auto"
     accelerometer_sigma_deg: float = ACCELEROMETER_SIGMA_DEG
     video_fps: float = VIDEO_FPS
     max_video_frames: int = MAX_VIDEO_FRAMES
@@ -107,10 +107,12 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
     mode = receiver.mode if receiver is not None else PAPER
     clock.stage("frames")
     check = check_code(assignment.max_id, assignment.bits, options.check_distance)
-    modulation = _modulate(assignment, check, mode.smallest_image_rows(xyz, radii, cam, sample), options)
+    modulation, no_frames = _frames(assignment, check, mode, mode.smallest_image_rows(xyz, radii, cam, sample),
+                                    options)
     accuracy = _accuracy(layout, radii, mode, sample, options, clock)
     advice = _advice(layout, radii, mode, verification, options, clock)
-    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver)
+    return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver,
+                no_frames)
 
 
 def _check_options(options: PlanOptions) -> None:
@@ -123,13 +125,26 @@ def _check_options(options: PlanOptions) -> None:
     check_receiver(options.receiver, options.verify)
 
 
-def _modulate(assignment: Assignment, check: CheckCode, rows: float, options: PlanOptions) -> Modulation:
-    """Each luminaire's frame (its ID's codeword), timed for the smallest LED image of a window [rows]."""
+def _frames(assignment: Assignment, check: CheckCode, mode: Receiver, rows: float | None, options: PlanOptions
+            ) -> tuple[Modulation | None, str | None]:
+    """Each luminaire's frame (its ID's codeword), timed for the smallest LED image of a window [rows]; or no
+    frames and why, when no sampled pose sees a window (``rows`` None) or no chip rate fits the limits with
+    ``--verify`` on: the plan is still written, with its verdict and advice, and no firmware."""
+    if rows is None:
+        why = f"no sampled camera pose sees {mode.window_words}, so there is no LED image to fit a frame into"
+        if not options.verify:  # no verdict or advice to write it beside
+            raise PlanningError(f"{why}; check the luminaire spacing against the camera (docs/camera.md)")
+        return None, why
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
-    return modulate(np.asarray(words), check.word_bits, line_code(options.line_code), rows, options.camera,
-                    driver_max_hz=options.driver_max_hz, video_fps=options.video_fps,
-                    max_video_frames=options.max_video_frames, mcu_clock_hz=options.mcu_clock_hz)
+    try:
+            return modulate(np.asarray(words), check.word_bits, line_code(options.line_code), rows, options.camera,
+                        driver_max_hz=options.driver_max_hz, video_fps=options.video_fps,
+                        max_video_frames=options.max_video_frames, mcu_clock_hz=options.mcu_clock_hz), None
+    except PlanningError as exc:
+        if not options.verify:  # nothing to advise from: the misfit is the answer
+            raise
+        return None, str(exc)
 
 
 def _accuracy(layout: Layout, radii: np.ndarray, mode: Receiver, sample: PoseSample, options: PlanOptions,
@@ -227,7 +242,7 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
             if plan.verification is not None:
                 render_coverage(plan.verification, plan.layout.xy,
                                 f"{source.name}: {plan.assignment.scheme} scheme", stage / "coverage.png")
-            if plan.accuracy is not None:
+            if plan.accuracy is not None and np.isfinite(plan.accuracy.error_m).any():  # a map of no fix shows nothing
                 render_error(plan, stage / "error.png")
         if with_report:
             from planner.report.files import write_report

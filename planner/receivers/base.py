@@ -89,8 +89,10 @@ class Receiver:
         """Each pose's status under ``ids`` (:data:`planner.verify.verify.DECODABLE` where it decodes)."""
         raise NotImplementedError
 
-    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
-        """Rows of the smallest LED image in any window over the timing prefix of ``sample`` (the frame must fit)."""
+    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample
+                            ) -> float | None:
+        """Rows of the smallest LED image in any window over the timing prefix of ``sample`` (the frame must fit);
+        None if no pose of that prefix sees a window."""
         raise NotImplementedError
 
     def vertical(self, rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray | None:

@@ -12,7 +12,6 @@ from planner.camera.model import Camera, Poses, disc_image_rows
 from planner.codes.assignment import Assignment, assign_paper
 from planner.codes.pair_code import assign_pairs
 from planner.codes.schemes import assign_unique
-from planner.errors import PlanningError
 from planner.graph import NeighbourGraph
 from planner.modulation.timing import timing_per_m2
 from planner.parallel import Runner
@@ -56,7 +55,8 @@ class TwoLedsGravity(Receiver):
         return classify_pairs(poses.position, pp, xyz, ids, per_m2=per_m2, seed=seed,
                               tolerance_m=CONGRUENCE_TOLERANCE_M).status
 
-    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
+    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample
+                            ) -> float | None:
         return smallest_pair_image_rows(xyz, radii, camera, sample)
 
     def vertical(self, rotation: np.ndarray, sigma_rad: float, rng: np.random.Generator) -> np.ndarray | None:
@@ -83,12 +83,13 @@ def sample_pairs(sample: PoseSample, xyz: np.ndarray, radii: np.ndarray, camera:
     return poses, have.first(len(poses))
 
 
-def smallest_pair_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
-    """Rows of the smallest LED image in any two-LED window over the timing prefix of ``sample``."""
+def smallest_pair_image_rows(xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample
+                             ) -> float | None:
+    """Rows of the smallest LED image in any two-LED window over the timing prefix of ``sample``; None if no
+    pose of that prefix sees two whole LEDs."""
     poses, pp = sample_pairs(sample, xyz, radii, camera, timing_per_m2(sample.area))
     if not pp.covered.any():
-        raise PlanningError("no sampled camera pose sees two whole LEDs: no LED image to fit a frame into; "
-                            "check the luminaire spacing against the camera (docs/camera.md)")
+        return None
     sub = poses.subset(np.flatnonzero(pp.covered))
     t = pp.pairs[pp.covered]
     return float(disc_image_rows(sub.position, sub.rotation, xyz[t], radii[t], camera).min())

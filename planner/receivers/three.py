@@ -101,5 +101,6 @@ class ThreeLeds(Receiver):
                   per_m2: float, seed: int) -> np.ndarray:
         return classify(observe_poses(poses, xyz, radii, camera, per_m2=per_m2, seed=seed), ids).status
 
-    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample) -> float:
+    def smallest_image_rows(self, xyz: np.ndarray, radii: np.ndarray, camera: Camera, sample: PoseSample
+                            ) -> float | None:
         return smallest_window_image_rows(xyz, radii, camera, sample)

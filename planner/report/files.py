@@ -97,7 +97,7 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
         if anchor == "map" and show_class:
             caption += " Odd class filled, even hollow (the paper's checkerboard: odd IDs on odd luminaires)."
         figures.append((anchor, name, png.read_bytes() if png.is_file() else None, caption,
-                        f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify)."))
+                        f"{file} was not drawn for this plan (vlp-plan --no-map or --no-verify, or no sampled pose was located)."))
     if plan.modulation is not None:
         figures.append(("timing", "Frame timing", timing_diagram(plan.modulation, timing_examples(plan, route)),
                         "What each driver sends, chip by chip: its frame repeats; the receiver reads at least one "

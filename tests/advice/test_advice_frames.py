@@ -23,7 +23,7 @@ def _plan(*args: str, cwd) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def advice(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("room")
-    run = _plan("-o", str(tmp / "as-is"), cwd=tmp)
+    run = _plan("-o", str(tmp / "as-is"), "--receiver", "three", cwd=tmp)  # the advice of a three-LED plan
     assert run.returncode == 3 and "NOT USABLE" in run.stderr
     return tmp, json.loads(run.stdout)["advice"]
 
@@ -56,7 +56,8 @@ def test_the_planner_agrees_the_frames_do_not_fit_without_the_drivers_and_do_wit
     row = _gravity_row(a)
     flags = row["flags"][:-2]
     slow = _plan(*flags, "-o", str(tmp / "slow"), cwd=tmp)
-    assert slow.returncode == 1 and "no chip rate fits" in slow.stderr
+    assert slow.returncode == 3 and "without frames or firmware: no chip rate fits" in slow.stderr
+    assert json.loads(slow.stdout)["modulation"] is None  # the plan and its advice are written, with no frames
     fast = _plan(*row["flags"], "-o", str(tmp / "fast"), cwd=tmp)
     assert fast.returncode == 0, fast.stderr
     done = json.loads(fast.stdout)

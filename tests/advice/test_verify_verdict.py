@@ -24,7 +24,7 @@ def plans(tmp_path_factory):
     out = {}
     for name, extra in (("strict", ()), ("allowed", ("--allow-unusable",))):
         made = _run("vlp-plan", CORRIDOR, "-o", str(tmp / name), "--no-report", "--no-map", "--no-firmware",
-                    "--error-poses-per-m2", "0", *extra)
+                    "--error-poses-per-m2", "0", "--receiver", "three", *extra)
         assert made.returncode == (0 if extra else 3) and "NOT USABLE" in made.stderr
         out[name] = tmp / name / "plan.yaml"
     return out
