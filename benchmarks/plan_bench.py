@@ -72,6 +72,18 @@ def run(args: list[str], outdir: Path) -> tuple[int, float, float, float]:
     return child.returncode, usage.ru_utime + usage.ru_stime, wall, usage.ru_maxrss / 1024
 
 
+def receiver(outdir: Path) -> str:
+    """The receiver mode the plan in ``outdir`` was made for, and the modes planned to choose it."""
+    import yaml
+
+    plan = outdir / "plan.yaml"
+    if not plan.is_file():
+        return "-"
+    r = yaml.safe_load(plan.read_text()).get("receiver") or {"mode": "three"}
+    others = [m for m in r.get("coverage", {}) if m != r["mode"]]
+    return r["mode"] + (f" (of {', '.join([r['mode'], *others])})" if others else "")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these cases (see --list)")
@@ -87,12 +99,13 @@ def main() -> None:
         load = os.getloadavg()[0]
         print(f"# {platform.node()} {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
               f"{time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, load {load:.1f} at start")
-        print("| case | exit | CPU [s] | wall [s] | peak [MiB] |\n|---|---:|---:|---:|---:|")
+        print("| case | receiver | exit | CPU [s] | wall [s] | peak [MiB] |\n|---|---|---:|---:|---:|---:|")
         for name, a in todo.items():
             if args.only and name not in args.only:
                 continue
-            code, cpu, wall, peak = run(a, outs / name.replace(" ", "_"))
-            print(f"| {name} | {code} | {cpu:.1f} | {wall:.1f} | {peak:,.0f} |", flush=True)
+            out = outs / name.replace(" ", "_")
+            code, cpu, wall, peak = run(a, out)
+            print(f"| {name} | {receiver(out)} | {code} | {cpu:.1f} | {wall:.1f} | {peak:,.0f} |", flush=True)
         print(f"load {os.getloadavg()[0]:.1f} at the end")
 
 

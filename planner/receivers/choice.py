@@ -75,8 +75,8 @@ def choose(job: Job, asked: str, accelerometer_sigma_deg: float) -> tuple[Planne
     coverage = {k: float(v.coverage) for k, (_, v, _) in planned.items() if v is not None}
     best = max(coverage, key=lambda k: (coverage[k], RECEIVERS[k] is PAPER))
     reason = (f"asked for (--receiver {asked})" if asked != AUTO else
-              f"the three-LED receiver decodes {100 * coverage[PAPER.name]:.1f} % of sampled poses, a usable plan "
-              f"(at least {100 * AUTO_GOAL:.0f} %)" if len(planned) == 1 else
+              f"its plan is usable: {100 * coverage[PAPER.name]:.1f} % of sampled poses decode, at least "
+              f"{100 * AUTO_GOAL:.0f} %" if len(planned) == 1 else
               "no mode decodes a sampled pose; the paper's receiver is kept" if coverage[best] == 0 else
               f"decodes more sampled poses ({_percent(coverage[best])} against {_percent(min(coverage.values()))})")
     choice = ReceiverChoice(RECEIVERS[best], coverage, seen_shares(job.sample.first(job.poses_per_m2)[1]), reason,
