@@ -250,9 +250,13 @@ def main(argv: list[str] | None = None) -> int:
     return ExitCode.CHECK_FAILED if unusable and not args.allow_unusable else ExitCode.OK
 
 
-def _set_bound(w: dict | None) -> str:
-    """The counting bound of the window set beside the width, saying whether the set is proved or sampled."""
-    return "" if not w else f"; {w['lower_bound_bits']} for the {w['windows']:,} {w['set']} windows"
+def _set_bound(w: dict | None, lower: int) -> str:
+    """The counting bound of the window set beside the width's ``lower`` bound, saying whether the set is proved
+    or sampled; said once where the two agree."""
+    if not w:
+        return ""
+    counted = f"counted over the {w['windows']:,} {w['set']} windows"
+    return f", {counted}" if w["lower_bound_bits"] == lower else f"; {w['lower_bound_bits']} {counted}"
 
 
 def _print_summary(s: dict) -> None:
@@ -265,7 +269,7 @@ def _print_summary(s: dict) -> None:
     shape = "bipartite" if s["bipartite"] else f"NOT bipartite (odd cycle {' - '.join(s['odd_cycle'])})"
     print(f"  graph    {s['neighbour_pairs']} neighbour pairs, {shape}")
     print(f"  code     {s['scheme']} scheme by {s['method']}: {s['bits']} bit{'s' if s['bits'] != 1 else ''} "
-          f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}{_set_bound(s.get('window_set'))}), "
+          f"(naive {s['naive_bits']}, lower bound {s['lower_bound_bits']}{_set_bound(s.get('window_set'), s['lower_bound_bits'])}), "
           f"efficiency {100 * s['efficiency']:.0f} %, IDs 1..{s['max_id']}, "
           f"{s['regions']} region{'s' if s['regions'] != 1 else ''}")
     if s["check_distance"] > 1:

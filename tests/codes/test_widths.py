@@ -114,7 +114,9 @@ def test_the_plan_gives_the_counting_bound_of_its_proved_window_set(tmp_path, ca
     assert code["window_set"] == {"set": "proved", "windows": len(proof.triangles), "lower_bound_labels": labels,
                                   "lower_bound_bits": bits_for(labels)}
     assert code["bits"] <= bits_for(labels) + 2 and code["bits"] < code["naive_bits"]
-    assert f"; {bits_for(labels)} for the {len(proof.triangles):,} proved windows)" in text
+    counted = f"counted over the {len(proof.triangles):,} proved windows)"
+    lower = code["lower_bound_bits"]  # the width's bound, said once where the set's agrees
+    assert (f"lower bound {lower}, {counted}" if lower == bits_for(labels) else f"; {bits_for(labels)} {counted}") in text
     ids = np.array([e["id"] for e in yaml.safe_load((out / "plan.yaml").read_text())["luminaires"]])
     assert find_rivals(proof.triangles, xyz, ids, TOL) == []
 
