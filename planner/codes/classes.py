@@ -242,6 +242,23 @@ class ClassIndex:
     def in_conflict(self, unit: int, lab: np.ndarray) -> bool:
         return bool(self._partners(self._keys(lab, np.array([unit])), self.win[[unit]])[0] > 0)
 
+    def alike_rows(self, lab: np.ndarray) -> np.ndarray:
+        """Every pair of triples the labels leave alike, one a window, as (P, 6) luminaire rows ``a0 a1 a2 b0 b1
+        b2`` in the order the labels are read (the rows :class:`planner.codes.pairwise.Index` takes): the
+        conflicts :meth:`begin` counts, listed."""
+        keys = self._keys(lab)
+        order = np.argsort(keys, kind="stable")
+        k = keys[order]
+        start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+        size = np.diff(np.r_[start, len(k)])
+        out = []
+        for s, m in zip(start[size > 1].tolist(), size[size > 1].tolist()):
+            rows = order[s:s + m]
+            a, b = np.triu_indices(m, 1)
+            keep = (self.win[rows[a]] | self.win[rows[b]]) == 1
+            out.append(np.hstack([self.T[rows[a[keep]]], self.T[rows[b[keep]]]]))
+        return np.vstack(out).astype(np.int64) if out else np.empty((0, 6), np.int64)
+
     def _pairs(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Pairs (local indices into ``i``'s rows) of triples holding ``i`` in one group, one of
         them a window: they move together when ``i`` does (cached)."""

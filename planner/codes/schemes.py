@@ -209,14 +209,26 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     skipped: list[int] = []
     steps_of = 0
 
+    split: dict = {}
+
     def climb(widths: list[int], skip: bool) -> tuple[np.ndarray | None, int]:
         """Labels of the first width of ``widths`` met (and its K), each width seeded by the one below."""
         nonlocal steps_of
         below: np.ndarray | None = None  # the best labels of the last width tried, if it fell short
+        below_at: tuple[pairwise.ConflictIndex, int] | None = None  # its index and K
         for b in widths:
             K = 2 ** b
             width = index_for(K)
-            if width is None:
+            if width is None:  # over the tables' budget: the width below's labels, with digits that part its conflicts
+                if below is not None and below_at is not None and isinstance(below_at[0], classes.ClassIndex):
+                    alike = below_at[0].alike_rows(below)
+                    lab, conflicts = split_labels(alike, below, below_at[1], K, n, rng=np.random.default_rng([seed, K]),
+                                                  max_steps=max_steps)
+                    tried.append(b)
+                    left.append(conflicts)
+                    if conflicts == 0:
+                        split.update(split_from_bits=bits_for(below_at[1]), split_pairs=len(alike))
+                        return lab, K
                 continue
             rng = np.random.default_rng([seed, K])
             if below is None:
@@ -231,7 +243,7 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
             left.append(int(conflicts))
             if conflicts == 0:
                 return lab, K
-            below = lab
+            below, below_at = lab, (width, K)
         return None, n
 
     widths = list(range(max(1, bits_for(bound)), unique_bits))
@@ -239,8 +251,24 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     if labels is None and skipped:  # every width left conflicts: the skipped ones too, each seeding the next
         labels, k = climb(widths[widths.index(skipped[0]):], skip=False)
     detail = {"windows": len(triangles), **size, "widths_tried": tried, "conflicts_left": left, "steps": int(steps_of),
-              "max_steps": max_steps, "labels": int(k)}
+              "max_steps": max_steps, "labels": int(k), **split}
     return ProvedLabels(labels, k, int(bound), detail)
+
+
+def split_labels(alike: np.ndarray, below: np.ndarray, k_below: int, K: int, n: int, *, rng: np.random.Generator,
+                 max_steps: int) -> tuple[np.ndarray, int]:
+    """Labels 0..K-1 made of the labels ``below`` (0..k_below-1) and one more digit base ``K / k_below`` per luminaire,
+    the digits chosen by min-conflicts so that every pair ``alike`` under ``below`` ((P, 6) rows, as
+    :class:`planner.codes.pairwise.Index` takes them) differs in some place; and the pairs left alike.
+
+    Two triples alike under the combined labels are alike under ``below`` too, so ``alike`` holds every
+    pair that can conflict: parting them all leaves none. Used where the width's own tables are over
+    their budget (:data:`planner.codes.classes.TABLE_BUDGET`): the pairs left by the width below are few.
+    """
+    digits = K // k_below
+    extra = rng.integers(0, digits, n).astype(np.int64)
+    conflicts, _ = pairwise.search_from(pairwise.Index(n, alike), digits, extra, rng=rng, max_steps=max_steps)
+    return below * digits + extra, int(conflicts)
 
 
 def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourGraph, camera: Camera,
@@ -254,6 +282,9 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
     if got is None:
         return None
     labels, method = got.labels, f"min-conflicts against the {len(proof.triangles):,} proved windows"
+    if "split_from_bits" in got.detail:
+        method += (f" (the {got.detail['split_from_bits']}-bit labels' {got.detail['split_pairs']:,} alike pairs "
+                   "parted by the last bits)")
     if labels is None:
         labels, method = np.arange(n, dtype=np.int64), "distinct labels (no shorter labels found)"
     ids = labels.astype(np.int64) + 1

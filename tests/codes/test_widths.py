@@ -61,6 +61,32 @@ def test_a_width_left_with_conflicts_leads_to_one_bit_more_with_reuse():
     assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
 
 
+def test_a_width_over_the_tables_budget_parts_the_conflicts_left_below_it(monkeypatch):
+    """The 1,024 lattice at 3 cm: 6 bits left 1,289 conflicts and 7 bits' shape-group tables were over
+    TABLE_BUDGET, so it fell to one ID per luminaire (10 bits). Here the same on a proved 3 x 6 grid, its
+    tables allowed 2 bits only: the 2-bit labels (conflicts left) get one more bit chosen to part every
+    pair they leave alike. The result passes the independent check against every proved window."""
+    from planner.codes import classes, pairwise
+
+    xyz, radii = _site(grid_xy(3, 6, 0.5, 0.5))
+    proof = prove_window_set(xyz, radii, Camera(), 0.03)
+    assert proof.triangles is not None
+    monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 0)  # the shape groups, as on large lattices
+    groups = classes.shape_groups(proof.triangles, xyz, TOL, proof.shape_matches(TOL))
+    assert groups is not None
+    monkeypatch.setattr(classes, "TABLE_BUDGET", groups.count * 4 ** 3)  # 2 bits fit, 3 do not
+    got = proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=math.inf,
+                        matches=lambda: proof.shape_matches(TOL))
+    assert got is not None and got.labels is not None
+    assert got.detail["widths_tried"][:2] == [2, 3] and got.detail["conflicts_left"][0] > 0
+    assert got.detail["split_from_bits"] == 2 and got.detail["split_pairs"] > 0
+    assert got.bits == 3 < bits_for(len(xyz)) and got.labels.max() < 8
+    assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
+    monkeypatch.setattr(classes, "TABLE_BUDGET", groups.count * 8 ** 3)  # with the tables, the same width
+    assert proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=math.inf,
+                         matches=lambda: proof.shape_matches(TOL)).bits == 3
+
+
 def test_skipped_widths_are_climbed_when_no_other_width_is_met():
     """With every width skipped as hopeless at first, the search still climbs them (from the bound)
     and never answers with one ID per luminaire."""
