@@ -329,8 +329,6 @@ def _print_summary(s: dict) -> None:
             print(f"  budget   median with exact images {length_text(exact) if exact is not None else '-'}; each term "
                   f"alone: {alone}; {TERM_NAMES[a['dominant']]} dominates")
     print(f"  wrote    {', '.join(s['files'])}  ({s['seconds']:.2f} s)")
-    if not s["sealed"] and any(Path(f).name == "firmware" for f in s["files"]):
-        print("  seal     none: vlp-flash flashes only a plan sealed under the site key (vlp-plan --key-file FILE)")
 
 
 
