@@ -51,8 +51,12 @@ def read_text(path: str | Path, what: str, missing: str = "no such file", max_by
 
 def load_yaml(path: str | Path, missing: str = "no such file"):
     """Parse ``path``; a missing file or bad YAML raises :class:`InputError` naming the file and line."""
+    return parse_yaml(read_text(path, "YAML file", missing), path)
+
+
+def parse_yaml(text: str, path: str | Path):
+    """Parse ``text``, read from ``path`` (named in errors), as :func:`load_yaml` does."""
     path = Path(path)
-    text = read_text(path, "YAML file", missing)
     try:
         doc = yaml.load(text, Loader=_LOADER)
     except yaml.YAMLError as exc:

@@ -45,9 +45,11 @@ def _shared_plan(tmp_path_factory, name: str, leds: int | None, *extra: str, ste
 
 @pytest.fixture(scope="session")
 def plan512_dir(tmp_path_factory) -> Path:
-    """``grid-512.yaml`` planned once for the whole run (default IDs; firmware and report, no map); read it,
-    never write into it."""
-    return _shared_plan(tmp_path_factory, "grid-512.yaml", 512)
+    """``grid-512.yaml`` planned once for the whole run (default IDs; firmware and report, no map; sealed under
+    ``bytes(range(32))``); read it, never write into it."""
+    key = tmp_path_factory.getbasetemp() / "site.key"  # sealed under bytes 0..31, the tests' site key: vlp-flash takes it
+    key.write_text(bytes(range(32)).hex())
+    return _shared_plan(tmp_path_factory, "grid-512.yaml", 512, "--key-file", str(key))
 
 
 @pytest.fixture(scope="session")

@@ -1,5 +1,6 @@
 """``vlp-flash PLAN --port PORT``: flash the luminaires' drivers with their configuration images.
 
+The plan must be sealed under the site key (``plan.yaml.seal``, written by ``vlp-plan --key-file``).
 Each image is rebuilt from ``plan.yaml`` (and must equal ``firmware/<name>/vlp_config.bin``),
 then signed for the driver that answers, at the version docs/flashing.md describes.
 Interactive (default): one driver at a time on a point-to-point cable, the installer
@@ -32,11 +33,12 @@ if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
 
 def build_parser() -> argparse.ArgumentParser:
     p = cli.Parser(prog="vlp-flash", description="Flash luminaire drivers over a serial link with their configuration "
-                    "images, rebuilt from the plan (they must equal the ones vlp-plan wrote in OUTDIR/firmware/) and "
+                    "images, rebuilt from the plan (sealed under the site key by vlp-plan --key-file; they must equal "
+                    "the ones vlp-plan wrote in OUTDIR/firmware/) and "
                     "signed with each driver's key (derived from the site key and the serial it reports); verify "
                     "and journal each.",
-                    epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input (an image file that "
-                    "differs from the plan), 2 usage (or the port lost mid-batch: rerun with --resume). Docs: "
+                    epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input (a plan not sealed under the "
+                    "site key, an image file that differs from the plan), 2 usage (or the port lost mid-batch: rerun with --resume). Docs: "
                     "docs/flashing.md, docs/protocol.md.")
     p.add_argument("plan", metavar="PLAN", nargs="?", help="plan.yaml in a vlp-plan output directory")
     p.add_argument("names", metavar="LUMINAIRE", nargs="*", help="luminaires to flash (or --all)")
@@ -63,7 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="let a driver other than the one bound to a luminaire in the journal take its image (a "
                    "replaced driver), or a driver bound to another luminaire move (journaled); without it both are "
                    "refused")
-    p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port")
+    p.add_argument("--dry-run", action="store_true", help="say what would be flashed; open no port (the plan's seal "
+                   "is checked only with a key)")
     p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
     p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
     cli.common_flags(p, "print the outcome per driver as JSON on stdout (progress goes to stderr); needs --bus or "
@@ -197,17 +200,22 @@ def main(argv: list[str] | None = None) -> int:
     say = sys.stderr if args.json else sys.stdout  # with --json, stdout carries the JSON document alone
     report: list[dict] = []
     doc_path = Path(args.plan)
+    from planner._files import read_text
     from planner.flash.flasher import flash_driver
     from planner.flash.journal import Journal
     from planner.flash.link import Link, PortLost
+    from planner.flash.seal import check_seal
     from planner.flash.wire import ANY_ADDRESS
     from planner.plan.file import load_plan
     from planner.plan.model import plan_hash
 
-    plan = load_plan(doc_path)
-    digest = plan_hash(doc_path.read_text("utf-8"))
-    targets = _targets(plan, args)
+    text = read_text(doc_path, "plan", "no such plan file; run vlp-plan first")  # one read: checked, hashed, sealed
     key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
+    if key is not None:  # only the site key's holder makes a plan vlp-flash signs images of (docs/plan-format.md)
+        check_seal(doc_path, text, key)
+    plan = load_plan(doc_path, text)
+    digest = plan_hash(text)
+    targets = _targets(plan, args)
     images = {e.name: plan_image(doc_path, e, digest) for e in targets}
     from planner.flash.bus_map import read_bus_map
 

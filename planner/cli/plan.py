@@ -116,6 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"version written into every configuration image, at most {MAX_IMAGE_VERSION:,}; drivers "
                    "refuse older ones (default 1)")
     g.add_argument("--no-firmware", action="store_true", help="do not write OUTDIR/firmware/")
+    g.add_argument("--key-file", metavar="FILE", help="site key (as vlp-flash's): seal plan.yaml under it "
+                   "(plan.yaml.seal); vlp-flash flashes only a sealed plan (docs/plan-format.md)")
     g = p.add_argument_group("output")
     g.add_argument("--no-map", action="store_true", help="do not draw map.png, coverage.png and error.png")
     g.add_argument("--no-report", action="store_true",
@@ -147,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
                          if Path(args.templates).is_dir() else f"--templates {args.templates}: no such directory")
     camera = cli.camera_from_args(args)  # a bad --camera is refused before any work
+    site_key = cli.site_key(args.key_file, env=False) if args.key_file else None  # and a bad key
     from planner.parallel import runner
 
     tiles = runner(args.workers, args.scheduler)  # and a scheduler that does not answer
@@ -177,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     firmware = None if args.no_firmware else FirmwareOptions(Path(args.templates) if args.templates else None,
                                                              args.mcu_clock_hz, args.image_version)
     written = write_outputs(plan, outdir, with_map=not args.no_map, firmware=firmware, with_report=not args.no_report,
-                            timings=clock)
+                            timings=clock, site_key=site_key)
     clock.stop()
     a, g = plan.assignment, plan.graph
     check = plan.check
@@ -212,6 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
+        "sealed": site_key is not None,
         "seconds": round(time.perf_counter() - t0, 3),
     }
     if args.json:

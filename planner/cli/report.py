@@ -38,6 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="as-built check: decode and locate every photo (.jpg, .jpeg, .png) in DIR and mark the "
                    "luminaires seen playing their planned ID or a wrong one (docs/photos.md)")
     cli.add_camera_flag(p, "with --photos: the camera that took them; default: the plan's camera")
+    p.add_argument("--key-file", metavar="FILE", help="site key: check the plan's seal and the journal's, and refuse "
+                   "either if it does not check (without it the journal's verified counts are its own word)")
     p.add_argument("-o", "--outdir", metavar="DIR", help="where to write the report (default: PLAN's directory)")
     cli.common_flags(p, "print what was written, the flashing counts and the as-built check as JSON")
     return p
@@ -45,20 +47,26 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from planner._files import read_text
     from planner.flash.journal import Journal
+    from planner.flash.seal import check_seal
     from planner.plan.file import load_plan
     from planner.plan.model import plan_hash
     from planner.report.content import checklist
     from planner.report.files import write_report
 
     plan_path = Path(args.plan)
-    plan = load_plan(plan_path)
+    text = read_text(plan_path, "plan", "no such plan file; run vlp-plan first")  # one read: checked and hashed
+    key = cli.site_key(args.key_file, env=False) if args.key_file else None
+    if key is not None:
+        check_seal(plan_path, text, key)
+    plan = load_plan(plan_path, text)
     plan.check_verdict_current(str(plan_path))
-    digest = plan_hash(plan_path.read_text("utf-8"))
+    digest = plan_hash(text)
     journal_path = Path(args.journal) if args.journal else plan_path.with_name("as-built.json")
     if args.journal and not journal_path.is_file():
         raise UsageError(f"--journal {journal_path}: no such file; give the as-built.json vlp-flash wrote")
-    entries = Journal(journal_path, digest).entries if journal_path.is_file() else None
+    entries = Journal(journal_path, digest, key).entries if journal_path.is_file() else None  # seals checked with key
     outdir = Path(args.outdir) if args.outdir else plan_path.parent
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a directory")
@@ -70,6 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     result: dict[str, Any] = {
         "written": [str(p) for p in written],
         "journal": str(journal_path) if entries is not None else None,
+        "seals_checked": key is not None,
         "luminaires": len(plan.luminaires),
         "verified": statuses.count("verified"),
         "failed": statuses.count("failed"),
@@ -79,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        where = f"journal {journal_path}" if entries is not None else "no journal yet"
+        where = (f"journal {journal_path}, " + ("its seals checked" if key else "seals not checked: give --key-file")
+                 if entries is not None else "no journal yet")
         print(f"vlp-report: wrote {', '.join(result['written'])} ({result['verified']} of {result['luminaires']} "
               f"drivers verified, {result['failed']} failed; {where})")
         if asbuilt is not None:

@@ -2,9 +2,9 @@
 
 One JSON file (format ``vlp-asbuilt/1``) per plan. Each entry written by ``vlp-flash`` carries a
 ``seal``, an HMAC under a key derived from the site key (:func:`~planner.flash.keys.journal_key`) over
-the plan hash, the luminaire's name and the entry: ``vlp-flash`` refuses a journal with an entry whose
-seal does not check (edited, written by hand, moved to another luminaire or plan). After every driver the entry is
-merged into the file under a lock (``fcntl.flock`` on ``.<name>.lock`` beside it:
+the plan hash, the luminaire's name and the entry: ``vlp-flash``, and ``vlp-report --key-file``, refuse a
+journal with an entry whose seal does not check (edited, written by hand, moved to another luminaire or plan).
+After every driver the entry is merged into the file under a lock (``fcntl.flock`` on ``.<name>.lock`` beside it:
 re-read, update that one luminaire, replace atomically), so two ``vlp-flash`` runs
 on one plan both end with every entry, and an interrupted batch leaves a complete
 journal that ``vlp-flash --resume`` reads to skip finished drivers. No key enters it.
@@ -82,7 +82,8 @@ def seal(key: bytes, plan_hash: str, name: str, entry: dict) -> str:
 
 class Journal:
     """The journal at ``path`` for the plan with hash ``plan_hash`` (read at once if it exists). With ``site_key``
-    every entry's seal is checked on reading and made on writing; without it (vlp-report) it is read unchecked."""
+    every entry's seal is checked on reading and made on writing; without it (vlp-report without --key-file) it is
+    read unchecked."""
 
     def __init__(self, path: str | Path, plan_hash: str, site_key: bytes | None = None):
         self.path = Path(path)
@@ -110,10 +111,10 @@ class Journal:
         if self._key is not None:
             for name, raw in doc.get("luminaires", {}).items():
                 if not hmac.compare_digest(str(raw.get("seal", "")), seal(self._key, self.plan_hash, name, raw)):
-                    raise InputError(f"{self.path}: the entry of {name!r} is not sealed under this site key (edited, "
-                                     "written by hand or by a vlp-flash before seals, or with another key): move the "
-                                     "journal away; vlp-flash --verify-only rebuilds it from the drivers' proved "
-                                     "answers")
+                    raise InputError(f"{self.path}: journal seal does not check: the entry of {name!r} was edited "
+                                     "(or written by hand, by a vlp-flash before seals, or under another site key), so "
+                                     "no entry of it is believed: move the journal away; vlp-flash --verify-only "
+                                     "rebuilds it from the drivers' proved answers")
         return {name: entry.model_dump(exclude_unset=True) for name, entry in checked.luminaires.items()}
 
     def check_writable(self) -> None:

@@ -56,6 +56,15 @@ def journal_key(site_key: bytes) -> bytes:
     return hmac.new(site_key, JOURNAL_KEY_LABEL, hashlib.sha256).digest()
 
 
+PLAN_KEY_LABEL = b"VLP plan key v1\x00"
+
+
+def plan_key(site_key: bytes) -> bytes:
+    """The key sealing ``plan.yaml``: HMAC-SHA256(site key, "VLP plan key v1" NUL), apart from the driver keys
+    and the journal key by its label, so neither a driver nor a journal seal can seal a plan."""
+    return hmac.new(site_key, PLAN_KEY_LABEL, hashlib.sha256).digest()
+
+
 def readable_by_all(path: str | Path) -> bool:
     """True if every user of this machine can read the key file ``path``: the file is readable by others and
     every folder above it searchable by others (a file in a private folder is not exposed)."""

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, model_validator
 
-from planner._files import load_yaml
+from planner._files import load_yaml, parse_yaml
 from planner._schema import Coordinate, Count, Finite, Positive, Text, validated
 from planner.camera.file import CameraFields
 from planner.defaults import (
@@ -327,6 +327,8 @@ def plan_from_document(doc: object, where: str) -> PlanFile:
     return validated(PlanFile, doc, where, "a plan", hint="; write the plan again with vlp-plan")
 
 
-def load_plan(path: str | Path) -> PlanFile:
-    """Read and check a ``plan.yaml``; raise :class:`InputError` naming the file and the bad field."""
-    return plan_from_document(load_yaml(path, "no such plan file; run vlp-plan first"), str(path))
+def load_plan(path: str | Path, text: str | None = None) -> PlanFile:
+    """Read and check a ``plan.yaml`` (``text``: its content, read already, so that the plan checked is the one
+    hashed and sealed); raise :class:`InputError` naming the file and the bad field."""
+    doc = load_yaml(path, "no such plan file; run vlp-plan first") if text is None else parse_yaml(text, path)
+    return plan_from_document(doc, str(path))

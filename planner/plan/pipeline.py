@@ -198,9 +198,9 @@ _REPLAN_HINT = "which replanning would delete; choose another -o, or move as-bui
 
 def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
                   firmware: FirmwareOptions | None = FirmwareOptions(), with_report: bool = True,
-                  timings: Timings | None = None) -> list[Path]:
-    """Write ``plan.yaml``, the annotated DXF (and IFC, from an IFC model), the maps, the site report and the
-    firmware files into ``outdir``, atomically.
+                  timings: Timings | None = None, site_key: bytes | None = None) -> list[Path]:
+    """Write ``plan.yaml`` (sealed under ``site_key``, if given: ``plan.yaml.seal``), the annotated DXF (and IFC,
+    from an IFC model), the maps, the site report and the firmware files into ``outdir``, atomically.
 
     Everything is written into a temporary directory beside ``outdir`` and moved
     into place at the end: on any error, no partial output is left. An existing
@@ -215,6 +215,10 @@ def write_outputs(plan: Plan, outdir: str | Path, *, with_map: bool = True,
         document = plan_document(plan, _sha256(source) if source.is_file() else "")
         text = dump_plan(document)
         (stage / "plan.yaml").write_text(text, encoding="utf-8")
+        if site_key is not None:  # vlp-flash flashes only a sealed plan (docs/plan-format.md)
+            from planner.flash.seal import seal_path, seal_text
+
+            seal_path(stage / "plan.yaml").write_text(seal_text(site_key, text), encoding="utf-8")
         written = plan_from_document(document, str(outdir / "plan.yaml"))  # what later stages will read back
         if firmware is not None and plan.modulation is not None:
             from planner.firmware.render import write_firmware

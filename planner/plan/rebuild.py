@@ -132,10 +132,11 @@ def verify_plan_file(plan: PlanFile, camera: Camera, *, poses_per_m2: float, see
 
 def rebuild(path: str | Path, outdir: str | Path | None, *, allow_unverified: bool = False,
             poses_per_m2: float, seed: int = 0, tolerance_m: float, template_dir: Path | None = None,
-            mcu_clock_hz: float = MCU_CLOCK_HZ, image_version: int = 1) -> dict:
+            mcu_clock_hz: float = MCU_CLOCK_HZ, image_version: int = 1, site_key: bytes | None = None) -> dict:
     """``vlp-plan --from-plan PATH``: every frame made again from its ``id``, the IDs verified, and ``plan.yaml``
-    and ``firmware/`` written into ``outdir`` (default: the plan's folder), atomically. A plan that fails
-    verification (IDs that read alike, or NOT USABLE) is refused unless ``allow_unverified``. Returns the summary."""
+    and ``firmware/`` written into ``outdir`` (default: the plan's folder), atomically, with ``plan.yaml.seal``
+    under ``site_key`` when given. A plan that fails verification (IDs that read alike, or NOT USABLE) is refused
+    unless ``allow_unverified``. Returns the summary."""
     from planner import __version__
     from planner._files import load_yaml
     from planner.advice.advise import verdict
@@ -176,11 +177,15 @@ def rebuild(path: str | Path, outdir: str | Path | None, *, allow_unverified: bo
     out = Path(outdir) if outdir is not None else path.parent
     with staged_output(out, "which a new plan would orphan; write the rebuilt plan into another -o") as stage:
         (stage / "plan.yaml").write_text(text, encoding="utf-8")
+        if site_key is not None:  # the edit, verified anew, sealed: vlp-flash takes it
+            from planner.flash.seal import seal_path, seal_text
+
+            seal_path(stage / "plan.yaml").write_text(seal_text(site_key, text), encoding="utf-8")
         write_firmware(written, plan_hash(text), stage, template_dir=template_dir, mcu_clock_hz=mcu_clock_hz,
                        image_version=image_version)
     return {"plan": str(out / "plan.yaml"), "luminaires": len(names), "frames_made_again": changed,
             "verified": bool(passed), "verdict": said, "coverage": round(float(result.coverage), 6),
-            "plan_hash": plan_hash(text)}
+            "plan_hash": plan_hash(text), "sealed": site_key is not None}
 
 
 def failed_verdict(result) -> str:

@@ -79,12 +79,12 @@ def site(tmp_path_factory) -> Path:
     doc = {"unit": "m", "height": 2.5, "luminaires": [{"name": f"L{i}{j}", "x": 0.5 * i, "y": 0.5 * j}
                                                       for i in range(4) for j in range(3)]}
     (base / "site.yaml").write_text(yaml.safe_dump(doc))
+    (base / "key").write_text(bytes(range(32)).hex())
     assert plan.console_main([str(base / "site.yaml"), "-o", str(base / "plan"), "--no-report", "--no-map",
-                              "--allow-unusable", "--poses-per-m2", "100"]) == 0
+                              "--allow-unusable", "--poses-per-m2", "100", "--key-file", str(base / "key")]) == 0
     assert plan.console_main([str(base / "site.yaml"), "-o", str(base / "unique"), "--scheme", "unique",
                               "--no-report", "--no-map", "--no-firmware", "--allow-unusable",
                               "--poses-per-m2", "100"]) == 0
-    (base / "key").write_text(bytes(range(32)).hex())
     return base
 
 

@@ -47,8 +47,9 @@ def site(tmp_path_factory) -> dict:
     from planner.cli.plan import main as plan_main
 
     base = tmp_path_factory.mktemp("loop")
+    (base / "key").write_text(KEY.hex())
     assert plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "planned"), "--no-map", "--no-report",
-                      "--json"]) == 0
+                      "--json", "--key-file", str(base / "key")]) == 0
     text = (base / "planned" / "plan.yaml").read_text()
     plan = load_plan(base / "planned" / "plan.yaml")
     old = int(plan.ids[0])
@@ -65,7 +66,6 @@ def site(tmp_path_factory) -> dict:
         if "clean" in found and "conflict" in found:
             break
     assert {"clean", "conflict"} <= set(found), f"no edit of {FIRST}'s id {old} of each kind: {found}"
-    (base / "key").write_text(KEY.hex())
     return {"base": base, "text": text, "old": old, **found}
 
 
@@ -85,19 +85,19 @@ def test_edit_verify_rebuild_and_flash(site, tmp_path):
     assert f"{FIRST} (id {new_id}: its frame sends ID {site['old']})" in checked.stdout
     verdict = next(line for line in checked.stdout.splitlines() if line.startswith("  verdict"))
     assert "NOT READY" in verdict and "usable" not in verdict  # the verdict agrees with exit 3
-    # the flasher refuses the edited plan as it stands: its images were made for the plan before the edit
+    # the flasher refuses the edited plan as it stands: it was edited since it was sealed under the site key
     key = ["--key-file", site["base"] / "key"]
     url = f"sim://?key={KEY.hex()}&drivers=32"
     refused = _run("vlp-flash", edited, "--all", "--bus", "--port", url, *key, "--json")
-    assert refused.returncode == 1 and "made for another plan" in refused.stderr
+    assert refused.returncode == 1 and "the plan was edited since it was sealed" in refused.stderr
 
     out = tmp_path / "rebuilt"
-    rebuilt = _run("vlp-plan", "--from-plan", edited, "-o", out, "--json")
+    rebuilt = _run("vlp-plan", "--from-plan", edited, "-o", out, "--json", *key)  # the key seals the rebuilt plan
     assert rebuilt.returncode == 0, rebuilt.stderr
     summary = json.loads(rebuilt.stdout)
-    assert summary["verified"] and summary["frames_made_again"] == [
+    assert summary["verified"] and summary["sealed"] and summary["frames_made_again"] == [
         f"{FIRST} (id {new_id}: its frame sends ID {site['old']})"]
-    assert sorted(p.name for p in out.iterdir()) == ["firmware", "plan.yaml"]
+    assert sorted(p.name for p in out.iterdir()) == ["firmware", "plan.yaml", "plan.yaml.seal"]
     plan = load_plan(out / "plan.yaml")
     assert plan.ids[0] == new_id and codec(plan, "rebuilt").id_of(plan.luminaires[0].frame.chips) == new_id
     image = parse_config_image((out / "firmware" / FIRST / "vlp_config.bin").read_bytes())

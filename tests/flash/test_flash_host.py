@@ -46,10 +46,10 @@ def plans(tmp_path_factory) -> Path:
     from planner.cli.plan import main as plan_main
 
     base = tmp_path_factory.mktemp("plans")
-    for name, extra in (("a", []), ("b", ["--height", "2.4"])):
-        plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / name), "--no-map", "--no-report",
-                   "--json", *extra])
     (base / "key").write_text(KEY.hex())
+    for name, extra in (("a", []), ("b", ["--height", "2.4"])):  # sealed: vlp-flash flashes no other plan
+        plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / name), "--no-map", "--no-report",
+                   "--json", "--key-file", str(base / "key"), *extra])
     return base
 
 

@@ -115,8 +115,9 @@ def plans(tmp_path_factory) -> Path:
     from planner.cli.plan import main as plan_main
 
     base = tmp_path_factory.mktemp("hostile-plans")
-    plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "a"), "--no-map", "--no-report", "--json"])
     (base / "key").write_text(KEY.hex())
+    plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "a"), "--no-map", "--no-report", "--json",
+               "--key-file", str(base / "key")])  # sealed: vlp-flash flashes no other plan
     return base
 
 
@@ -324,9 +325,9 @@ def test_a_forged_or_edited_journal_is_refused_and_resume_skips_nothing_on_its_w
         code = _run(plans, journal, flash, "R01C01,1\nR01C02,2\n", "--resume")
         out, err = capsys.readouterr()
         assert code == 1 and out == "" and len(err.splitlines()) == 1, (k, out, err)
-        assert "is not sealed under this site key" in err and "vlp-flash --verify-only rebuilds it" in err
+        assert "journal seal does not check: the entry of" in err and "vlp-flash --verify-only rebuilds it" in err
         assert json.loads(journal.read_text()) == edited  # refused before anything: no driver flashed, no entry
-    assert Journal(journal, doc["plan_hash"]).entries  # read without the key (vlp-report), unchecked
+    assert Journal(journal, doc["plan_hash"]).entries  # read without the key (vlp-report without --key-file), unchecked
 
 
 def test_interactive_mode_shows_the_driver_that_answered_and_refuses_the_wrong_one(plans, tmp_path):

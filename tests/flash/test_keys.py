@@ -9,7 +9,7 @@ import pytest
 
 from planner.cli.common import site_key
 from planner.errors import UsageError
-from planner.flash.keys import driver_key, site_key_from
+from planner.flash.keys import driver_key, journal_key, plan_key, site_key_from
 from planner.flash.sim.protocol_sim import SimUrlError, bus_from_url
 
 KEY = bytes(range(32))
@@ -44,6 +44,13 @@ def test_each_driver_has_its_own_key_derived_from_the_site_key():
     assert a.hex().startswith("6eab083b")  # the worked example of docs/protocol.md
     with pytest.raises(ValueError):
         driver_key(KEY, "")
+
+
+def test_the_plan_and_journal_keys_are_derived_under_their_own_labels():
+    assert plan_key(KEY) == hmac.new(KEY, b"VLP plan key v1\x00", hashlib.sha256).digest()
+    assert plan_key(KEY).hex().startswith("fb093b91")  # the worked example of docs/plan-format.md
+    assert journal_key(KEY) == hmac.new(KEY, b"VLP journal key v1\x00", hashlib.sha256).digest()
+    assert len({plan_key(KEY), journal_key(KEY), driver_key(KEY, "SIM-000001")}) == 3
 
 
 def test_a_key_file_every_user_can_read_is_warned_about():

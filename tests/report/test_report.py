@@ -91,8 +91,9 @@ def test_checklist_takes_the_status_from_the_journal():
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
     base = tmp_path_factory.mktemp("report")
-    plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "plan"), "--json"])
     (base / "key").write_text(KEY.hex())
+    plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "plan"), "--json", "--key-file",
+               str(base / "key")])  # sealed: vlp-flash flashes no other plan
     return base
 
 
