@@ -22,12 +22,12 @@ from planner.errors import UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-accuracy",
-        description="Reproduce the paper's positioning experiment (Table 2: four LEDs at (0, +-0.3, 2.5) and "
+    p = cli.parser(
+        "vlp-accuracy",
+        "Reproduce the paper's positioning experiment (Table 2: four LEDs at (0, +-0.3, 2.5) and "
         "(+-0.5, 0, 2.5) m, 50.4 deg field of view, receiver at 0.7 m, 16 test points, tilts 0/20/30/40 deg) in "
         "simulation with the paper's method and the full-perspective method on the same images.",
-        epilog="Docs: docs/positioning.md.",
+        ok="done", docs="docs/positioning.md", json="print the figures as JSON instead of the table",
     )
     p.add_argument("--trials", type=cli.count_up_to(MAX_TRIALS), default=10, metavar="N",
                    help=f"trials per test point (default 10, as the paper; at most {MAX_TRIALS:,})")
@@ -40,7 +40,6 @@ def build_parser() -> argparse.ArgumentParser:
                    "default: no plot)")
     cli.add_camera_flag(p, "the phone on the rig; default: the paper's camera (its tilts and heights are the rig's)")
     cli.add_error_budget_flags(p, "the experiment")
-    cli.common_flags(p, "print the figures as JSON instead of the table")
     return p
 
 
