@@ -31,12 +31,12 @@ if TYPE_CHECKING:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-calibrate",
-        description="Calibrate a phone camera: intrinsics and lens distortion from photos of a printed chessboard "
+    p = cli.parser(
+        "vlp-calibrate",
+        "Calibrate a phone camera: intrinsics and lens distortion from photos of a printed chessboard "
         "(OpenCV), and the rolling shutter's row time from a photo of a luminaire blinking a square wave; write "
         "a camera YAML (docs/camera.md) for --camera.",
-        epilog="Exit codes: 0 done, 1 bad input, 2 usage error. Docs: docs/camera.md#calibration.",
+        ok="done", docs="docs/camera.md#calibration", json="print the result as JSON",
     )
     p.add_argument("images", nargs="*", metavar="IMAGES", help="chessboard photos (JPEG/PNG), all the same size")
     g = p.add_argument_group("chessboard")
@@ -69,7 +69,6 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("-o", "--output", metavar="YAML", help="write the camera YAML here (atomically)")
     cli.add_camera_flag(g, "with --row-time and no IMAGES: the camera whose row time is measured, written to -o")
     g.add_argument("--name", default="", metavar="NAME", help="the camera's name in the YAML (default: none)")
-    cli.common_flags(p, "print the result as JSON")
     return p
 
 
