@@ -151,13 +151,6 @@ def non_negative_float(text: str) -> float:
     return _number(text, 0.0, strict=False)
 
 
-def common_flags(p: argparse.ArgumentParser, json_help: str) -> None:
-    """The flags every command has, last in its help: ``--json``, ``-v/--verbose``, ``--version``."""
-    p.add_argument("--json", action="store_true", help=json_help)
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
-    p.add_argument("--version", action="version", version=f"{p.prog} {__version__}")
-
-
 def add_reading_flags(p: argparse.ArgumentParser, title: str, what: str) -> None:
     """The flags that steer how a layout or drawing ``what`` is read (vlp-plan, vlp-inspect); :func:`read_options`."""
     g = p.add_argument_group(title)
