@@ -236,7 +236,10 @@ def _heights(shots: list[tuple[float, str]], led_radius_m: float, camera: Camera
             raise InputError(f"{path}: {gray.shape[1]} x {gray.shape[0]} px, but the camera has {camera.width_px} x "
                              f"{camera.height_px}; take the photos in the camera's own mode")
         radii.append(led_image_radius_px(gray, path))
-    fit = fit_heights([d for d, _ in shots], radii, led_radius_m)
+    try:
+        fit = fit_heights([d for d, _ in shots], radii, led_radius_m)
+    except InputError as exc:
+        raise InputError(f"--heights: {exc}") from None
     mean = sum(fit.distances_m) / len(fit.distances_m)
     return {"f0_px": fit.f0_px, "k_px_per_m": fit.k_px_per_m, "led_radius_m": led_radius_m, "mean_distance_m": mean,
             "focal_at_mean_px": fit.focal_at(mean),
@@ -248,7 +251,10 @@ def _blink_firmware(args) -> dict:
     from planner.calibration.blink import blink_timer, write_blink_firmware
 
     timer = blink_timer(args.blink_hz, args.mcu_clock_hz)
-    files = write_blink_firmware(Path(args.blink_firmware), timer)
+    try:
+        files = write_blink_firmware(Path(args.blink_firmware), timer)
+    except UsageError as exc:
+        raise UsageError(f"--blink-firmware {exc}") from None
     return {"dir": args.blink_firmware, "files": files, "blink_hz": timer.actual_hz, "prescaler": timer.prescaler,
             "compare": timer.compare, "mcu_clock_hz": timer.mcu_clock_hz}
 

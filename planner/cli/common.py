@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from planner import __version__
-from planner.cli.console import console_main, one_line
+from planner.cli.console import console_main, one_line, worded
 from planner.defaults import (
     CONGRUENCE_TOLERANCE_M,
     DISTORTION_RESIDUAL_PX,
@@ -42,7 +42,7 @@ if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--
     from planner.camera.model import Camera
     from planner.layout.read import ReadOptions
 
-__all__ = ["console_main", "one_line"]  # run by every command as cli.console_main; the rest is defined here
+__all__ = ["console_main", "one_line", "worded"]  # run by every command as cli.console_main; the rest is defined here
 
 
 class Parser(argparse.ArgumentParser):

@@ -4,11 +4,16 @@ A command's ``main(argv)`` raises :class:`~planner.errors.PlannerError` so tests
 process; :func:`console_main` prints one line per error with the exit code it carries
 (:class:`~planner.errors.ExitCode`), the traceback only under ``--verbose``, and unwinds
 SIGTERM and SIGHUP like Ctrl-C so nothing is left half-written.
+
+The library names its parameters in errors, in backticks (`` `check_distance` 30: ...``);
+:func:`worded` says them as the flags that set them (``--check-distance 30: ...``): only
+``cli/`` speaks of flags.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import signal
 import sys
 import traceback
@@ -17,6 +22,33 @@ from collections.abc import Callable
 from typing import Any, NoReturn
 
 from planner.errors import ExitCode, PlannerError, PlannerWarning
+
+FLAGS = {
+    "blink_hz": "--blink-hz",
+    "camera": "--camera",
+    "check_distance": "--check-distance",
+    "journal": "--journal",
+    "leds": "--leds",
+    "max_poses": "--max-poses",
+    "mount_height_m": "--height",
+    "poses_per_m2": "--poses-per-m2",
+    "radius_m": "--radius",
+    "receiver": "--receiver",
+    "room": "--room",
+    "scheduler": "--scheduler",
+    "scheme": "--scheme",
+    "storey": "--storey",
+    "units": "--units",
+    "verify=False": "--no-verify",
+    "workers": "--workers",
+}
+"""The library's parameters (as its errors name them, in backticks) and the flags that set them."""
+
+
+def worded(text: str) -> str:
+    """An error of the library as the command line says it: each `parameter` it names as its flag
+    (:data:`FLAGS`); a name not listed keeps its backticks."""
+    return re.sub(r"`([^`\s]+)`", lambda m: FLAGS.get(m[1], m[0]), text)
 
 
 def one_line(text: str) -> str:
@@ -73,14 +105,14 @@ def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], nam
             code = command(argv)
         for w in caught:  # after the run: a run that fails prints its one error line alone
             if issubclass(w.category, PlannerWarning):
-                print(f"{name}: warning: {one_line(str(w.message))}", file=sys.stderr)
+                print(f"{name}: warning: {one_line(worded(str(w.message)))}", file=sys.stderr)
             else:
                 warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         return code
     except PlannerError as exc:
         if verbose:
             traceback.print_exc()
-        print(f"{name}: error: {one_line(str(exc))}", file=sys.stderr)
+        print(f"{name}: error: {one_line(worded(str(exc)))}", file=sys.stderr)
         return exc.exit_code
     except BrokenPipeError:  # the reader went away (``| head``): stop quietly, as Unix tools do
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

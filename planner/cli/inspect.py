@@ -48,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     from planner.layout.survey import draw_survey, survey
     options = cli.read_options(args)
     report = survey(args.drawing, args.leds, options)
+    if report["error"] is not None:  # the reader names its parameters; the user gave flags
+        report["error"] = cli.worded(report["error"])
     if png is not None and report.get("points"):
         from planner._files import write_atomically
 
