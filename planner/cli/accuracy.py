@@ -36,8 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
     p.add_argument("--seed", type=cli.seed, default=0, help="random seed (default 0)")
-    p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (SVG if it ends in .svg; "
-                   "default: no plot)")
+    p.add_argument("--png", "--cdf", dest="cdf", metavar="FILE",
+                   help="draw the error CDF plot into this PNG (SVG if it ends in .svg; default: no plot; --cdf: the "
+                   "old name, kept for a release)")
     cli.add_camera_flag(p, "the phone on the rig; default: the paper's camera (its tilts and heights are the rig's)")
     cli.add_error_budget_flags(p, "the experiment")
     return p
@@ -56,7 +57,7 @@ def _tilts(text: str) -> list[float]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     tilts = _tilts(args.tilts)
-    cdf = cli.output_file("--cdf", args.cdf)
+    cdf = cli.output_file("--png", args.cdf)
     terms = cli.error_terms(args)
     camera = cli.camera_from_args(args)
     from planner.positioning.accuracy import HAND_JITTER_DEG, budget_text, paper_budget, plot_cdf, stats_cm, table3_text

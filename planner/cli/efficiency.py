@@ -64,7 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--layouts", metavar="DIR",
                    help="read the table's grids from grid-32.yaml, grid-256.yaml and grid-512.yaml in this folder "
                    "(default: the paper's grids built in code, the same as the bundled layouts/)")
-    p.add_argument("--plot", metavar="PNG", help="draw the curve into this PNG (default: no plot)")
+    p.add_argument("--png", "--plot", dest="plot", metavar="FILE",
+                   help="draw the curve into this PNG (default: no plot; --plot: the old name, kept for a release)")
     return p
 
 
@@ -74,7 +75,7 @@ def _progress(line: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    plot = cli.output_file("--plot", args.plot)
+    plot = cli.output_file("--png", args.plot)
     paths = {n: Path(args.layouts) / name for n, name in PAPER_LAYOUTS.items()} if args.layouts else {}
     missing = [str(p) for p in paths.values() if not p.is_file()]
     if missing:

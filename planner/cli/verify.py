@@ -40,13 +40,14 @@ def build_parser() -> argparse.ArgumentParser:
     cli.add_verify_flags(p)
     cli.add_parallel_flags(p)
     p.add_argument("--seed", type=cli.seed, default=0, help="seed of the pose sample (default 0)")
-    p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
+    p.add_argument("--png", "--map", dest="map", metavar="FILE",
+                   help="also write the coverage map to this PNG (--map: the old name, kept for a release)")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    map_path = cli.output_file("--map", args.map)
+    map_path = cli.output_file("--png", args.map)
 
     from planner.plan.file import load_plan
     from planner.plan.rebuild import failed_verdict, frame_mismatches, verify_plan_file

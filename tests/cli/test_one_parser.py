@@ -87,3 +87,24 @@ def test_worded_says_the_flag_and_leaves_other_text_alone():
     assert worded("`check_distance` 30: 512 IDs need more than 24 bits") == "--check-distance 30: 512 IDs need more than 24 bits"
     assert worded("`verify=False` needs an explicit `scheme`: auto chooses") == "--no-verify needs an explicit --scheme: auto chooses"
     assert worded("layer `TAG` of `mount_height_m`") == "layer `TAG` of --height"
+
+
+FIGURES = {"vlp-verify": ("--map", ["plan.yaml"]), "vlp-accuracy": ("--cdf", []), "vlp-efficiency": ("--plot", []),
+           "vlp-twin": (None, ["plan.yaml"]), "vlp-inspect": (None, ["site.dxf"])}
+"""Every command that draws a figure into a file, its flag's old name and what it needs besides."""
+
+
+@pytest.mark.parametrize("command", sorted(FIGURES))
+def test_a_figure_file_is_png_in_every_command_and_the_old_name_still_parses(command):
+    """Issue 38: one flag name for one meaning; --map, --cdf and --plot stay aliases for a release."""
+    old, positionals = FIGURES[command]
+    parser = importlib.import_module(ENTRY_POINTS[command]).build_parser()
+    action = next(a for a in parser._actions if "--png" in a.option_strings)
+    assert action.option_strings[0] == "--png" and action.metavar == "FILE"
+    assert getattr(parser.parse_args([*positionals, "--png", "a.png"]), action.dest) == "a.png"
+    if old:
+        assert action.option_strings == ["--png", old]
+        assert getattr(parser.parse_args([*positionals, old, "b.png"]), action.dest) == "b.png"
+    others = {a.option_strings[0] for p in ENTRY_POINTS.values() for a in importlib.import_module(p).build_parser()._actions
+              if a.option_strings and a.metavar in ("PNG", "SVG")}
+    assert not others, others  # no figure flag under another name
