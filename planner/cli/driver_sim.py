@@ -23,13 +23,12 @@ import signal
 import sys
 import tempfile
 import time
-import traceback
 import tty
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
-from planner.errors import PlannerError, UsageError
+from planner.errors import UsageError
 
 if TYPE_CHECKING:  # the simulator loads when the command runs, not when it parses (--help at once)
     from planner.flash.sim.bus import SimBus
@@ -61,8 +60,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--build-dir", type=Path, metavar="DIR", help="with --firmware avr: where the firmware and emulator are built "
                                                   "(default ~/.cache/vlp-plan/avr)")
     return p
-
-
 
 
 def _wake_on_signals() -> tuple[int, int]:
@@ -196,15 +193,9 @@ def _main_avr(args: argparse.Namespace, key: bytes) -> int:
 
 
 def console_main(argv: list[str] | None = None) -> int:
-    """The ``vlp-driver-sim`` script: one line per error and a non-zero exit code."""
-    args = sys.argv[1:] if argv is None else argv
-    try:
-        return main(argv)
-    except PlannerError as exc:
-        if "-v" in args or "--verbose" in args:
-            traceback.print_exc()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+    """The ``vlp-driver-sim`` script: one line per error and a non-zero exit code (:func:`cli.console_main`; the
+    serving loop sets its own SIGTERM and SIGINT handling, which stops it with exit 0)."""
+    return cli.console_main(argv, main, PROG)
 
 
 if __name__ == "__main__":
