@@ -17,7 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from planner import __version__
-from planner.cli.console import console_main, one_line, worded
+from planner.cli.console import console_main as console_main  # every command's script: cli.console_main
+from planner.cli.console import one_line as one_line
+from planner.cli.console import worded as worded
 from planner.defaults import (
     CONGRUENCE_TOLERANCE_M,
     DISTORTION_RESIDUAL_PX,
@@ -41,8 +43,6 @@ from planner.errors import InputError, PlannerWarning, UsageError
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera.model import Camera
     from planner.layout.read import ReadOptions
-
-__all__ = ["console_main", "one_line", "worded"]  # run by every command as cli.console_main; the rest is defined here
 
 
 class Parser(argparse.ArgumentParser):
