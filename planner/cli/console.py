@@ -24,9 +24,11 @@ from typing import Any, NoReturn
 from planner.errors import ExitCode, PlannerError, PlannerWarning
 
 FLAGS = {
+    "allow_unverified": "--allow-unverified",
     "blink_hz": "--blink-hz",
     "camera": "--camera",
     "check_distance": "--check-distance",
+    "eeprom_dir": "--eeprom-dir",
     "journal": "--journal",
     "leds": "--leds",
     "max_poses": "--max-poses",
