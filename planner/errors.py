@@ -1,4 +1,6 @@
 """The planner's exceptions: messages are written for the user (what, where, what to do).
+A message names a parameter as the library spells it, in backticks (`` `check_distance` 30: ...``), never
+as a flag; the command line says it as the flag that sets it (:func:`planner.cli.console.worded`).
 
 The command line turns a ``PlannerError`` into one line on stderr and its
 ``exit_code``; ``--verbose`` adds the traceback. Every command exits with an

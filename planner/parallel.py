@@ -85,11 +85,11 @@ class DaskCluster(Runner):
         try:
             from distributed import Client
         except ImportError:  # pragma: no cover - a dependency of the package
-            raise UsageError("--scheduler needs dask.distributed: pip install 'vlp-plan[cluster]'") from None
+            raise UsageError("`scheduler` needs dask.distributed: pip install 'vlp-plan[cluster]'") from None
         try:
             self._client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(f"--scheduler {address}: no Dask scheduler answers there ({_first_line(exc)}); "
+            raise InputError(f"`scheduler` {address}: no Dask scheduler answers there ({_first_line(exc)}); "
                              "start one (dask scheduler) or check the address") from None
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
         self.description = f"Dask scheduler {address} ({self.workers} workers)"
@@ -109,7 +109,7 @@ class DaskCluster(Runner):
 def runner(workers: int = 1, scheduler: str | None = None) -> Runner:
     """The runner the command line asks for: a Dask client, ``workers`` local processes, or in process."""
     if scheduler is not None and workers > 1:
-        raise UsageError("--workers and --scheduler exclude each other: the scheduler's workers run the tiles")
+        raise UsageError("`workers` and `scheduler` exclude each other: the scheduler's workers run the tiles")
     if scheduler is not None:
         return DaskCluster(scheduler)
     if workers > 1:

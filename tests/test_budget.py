@@ -37,7 +37,7 @@ def test_work_beyond_the_budget_is_refused_with_its_numbers():
     with pytest.raises(UsageError, match=r"240,000,000,000 camera poses \(plan sample 80,000,000,000, window design "
                                          r"160,000,000,000\): about 64,000.0 GB and 467 h, more than the 50,000,000"):
         budget.check_work(work, None)
-    with pytest.raises(UsageError, match="more than --max-poses 10; lower --poses-per-m2 or raise --max-poses"):
+    with pytest.raises(UsageError, match="more than `max_poses` 10; lower `poses_per_m2` or raise `max_poses`"):
         budget.check_work(budget.Work({"verification": 11}), 10)
     budget.check_work(budget.Work({"verification": 10}), 10)  # at the budget: runs
     budget.check_work(budget.Work({"verification": 60_000_000}), 60_000_000)  # asked for: no default cap

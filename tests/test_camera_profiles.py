@@ -53,7 +53,7 @@ def test_the_diagonal_field_of_view_of_the_ultra_wide_is_the_one_its_makers_quot
 def test_an_unknown_name_lists_the_profiles_and_a_camera_file_still_reads(tmp_path):
     with pytest.raises(UsageError) as err:
         camera_from("pixel9")
-    assert str(err.value).startswith("--camera pixel9: no such camera profile or file; profiles: paper, main, wide")
+    assert str(err.value).startswith("`camera` pixel9: no such camera profile or file; profiles: paper, main, wide")
     (tmp_path / "cam.yaml").write_text("hfov_deg: 70\nname: mine\n")
     assert camera_from(str(tmp_path / "cam.yaml")).name == "mine"
 

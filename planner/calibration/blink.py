@@ -41,13 +41,13 @@ def blink_timer(blink_hz: float, mcu_clock_hz: float = MCU_CLOCK_HZ) -> BlinkTim
     """The setting closest to ``blink_hz`` [Hz]; :class:`UsageError` if the MCU cannot make it."""
     half_cycles = mcu_clock_hz / (2 * blink_hz)
     if half_cycles < MIN_TOGGLE_CYCLES:
-        raise UsageError(f"--blink-hz {blink_hz:g}: at most {mcu_clock_hz / (2 * MIN_TOGGLE_CYCLES):g} Hz at a "
+        raise UsageError(f"`blink_hz` {blink_hz:g}: at most {mcu_clock_hz / (2 * MIN_TOGGLE_CYCLES):g} Hz at a "
                          f"{mcu_clock_hz:g} Hz clock")
     for prescaler in PRESCALERS:
         compare = round(half_cycles / prescaler) - 1
         if compare <= 0xFFFF:
             return BlinkTimer(prescaler, compare, mcu_clock_hz)
-    raise UsageError(f"--blink-hz {blink_hz:g}: at least {mcu_clock_hz / (2 * 1024 * 65536):.3g} Hz at a "
+    raise UsageError(f"`blink_hz` {blink_hz:g}: at least {mcu_clock_hz / (2 * 1024 * 65536):.3g} Hz at a "
                      f"{mcu_clock_hz:g} Hz clock")
 
 
@@ -64,6 +64,6 @@ def write_blink_firmware(folder: Path, timer: BlinkTimer) -> list[str]:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UsageError(f"--blink-firmware {folder}: cannot make the folder ({exc.strerror or exc})") from None
+        raise UsageError(f"{folder}: cannot make the folder ({exc.strerror or exc})") from None
     write_text_atomically(folder / "blink.c", blink_source(timer))
     return ["blink.c"]

@@ -58,7 +58,7 @@ def led_image_radius_px(gray: np.ndarray, where: str = "the photo") -> float:
 def fit_heights(distances_m: list[float], radii_px: list[float], led_radius_m: float) -> HeightFit:
     """Section 2.4's line through the shots (distances below the LED [m], image radii [px])."""
     if len(distances_m) < MIN_SHOTS or len(set(distances_m)) < MIN_SHOTS:
-        raise InputError(f"--heights: give at least {MIN_SHOTS} photos at different distances below the LED")
+        raise InputError(f"give at least {MIN_SHOTS} photos at different distances below the LED")
     f0, k = fit_focal_length(np.array(distances_m), np.array(radii_px), led_radius_m)
     focal = tuple(float(d * a / led_radius_m) for d, a in zip(distances_m, radii_px))
     return HeightFit(f0, k, tuple(distances_m), tuple(radii_px), focal)

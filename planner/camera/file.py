@@ -114,7 +114,7 @@ def camera_profile(name: str) -> Camera:
     """The bundled profile ``name``; :class:`UsageError` listing the names if there is none."""
     profiles = camera_profiles()
     if name not in profiles:
-        raise UsageError(f"--camera {name}: no such camera profile or file; profiles: {', '.join(profiles)} "
+        raise UsageError(f"`camera` {name}: no such camera profile or file; profiles: {', '.join(profiles)} "
                          "(vlp-plan --list-cameras), or give a camera YAML file")
     return profiles[name].camera
 

@@ -1,1 +1,1 @@
-"""The ten ``vlp-*`` commands: one module each, and their shared parser and conventions (``common``)."""
+"""The eleven ``vlp-*`` commands: one module each, their one parser builder and shared flags (``common``) and how they run (``console``)."""

@@ -22,12 +22,12 @@ from planner.errors import UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-accuracy",
-        description="Reproduce the paper's positioning experiment (Table 2: four LEDs at (0, +-0.3, 2.5) and "
+    p = cli.parser(
+        "vlp-accuracy",
+        "Reproduce the paper's positioning experiment (Table 2: four LEDs at (0, +-0.3, 2.5) and "
         "(+-0.5, 0, 2.5) m, 50.4 deg field of view, receiver at 0.7 m, 16 test points, tilts 0/20/30/40 deg) in "
         "simulation with the paper's method and the full-perspective method on the same images.",
-        epilog="Docs: docs/positioning.md.",
+        ok="done", docs="docs/positioning.md", json="print the figures as JSON instead of the table",
     )
     p.add_argument("--trials", type=cli.count_up_to(MAX_TRIALS), default=10, metavar="N",
                    help=f"trials per test point (default 10, as the paper; at most {MAX_TRIALS:,})")
@@ -36,11 +36,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--radius", type=cli.positive_float, default=PAPER_RADIUS_M, metavar="M",
                    help=f"LED radius [m] (default {PAPER_RADIUS_M:g}; the paper does not give it)")
     p.add_argument("--seed", type=cli.seed, default=0, help="random seed (default 0)")
-    p.add_argument("--cdf", metavar="PNG", help="draw the error CDF plot into this PNG (SVG if it ends in .svg; "
-                   "default: no plot)")
+    p.add_argument("--png", "--cdf", dest="cdf", metavar="FILE",
+                   help="draw the error CDF plot into this PNG (SVG if it ends in .svg; default: no plot; --cdf: the "
+                   "old name, kept for a release)")
     cli.add_camera_flag(p, "the phone on the rig; default: the paper's camera (its tilts and heights are the rig's)")
     cli.add_error_budget_flags(p, "the experiment")
-    cli.common_flags(p, "print the figures as JSON instead of the table")
     return p
 
 
@@ -57,7 +57,7 @@ def _tilts(text: str) -> list[float]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     tilts = _tilts(args.tilts)
-    cdf = cli.output_file("--cdf", args.cdf)
+    cdf = cli.output_file("--png", args.cdf)
     terms = cli.error_terms(args)
     camera = cli.camera_from_args(args)
     from planner.positioning.accuracy import HAND_JITTER_DEG, budget_text, paper_budget, plot_cdf, stats_cm, table3_text

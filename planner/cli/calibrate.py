@@ -31,12 +31,12 @@ if TYPE_CHECKING:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-calibrate",
-        description="Calibrate a phone camera: intrinsics and lens distortion from photos of a printed chessboard "
+    p = cli.parser(
+        "vlp-calibrate",
+        "Calibrate a phone camera: intrinsics and lens distortion from photos of a printed chessboard "
         "(OpenCV), and the rolling shutter's row time from a photo of a luminaire blinking a square wave; write "
         "a camera YAML (docs/camera.md) for --camera.",
-        epilog="Exit codes: 0 done, 1 bad input, 2 usage error. Docs: docs/camera.md#calibration.",
+        ok="done", docs="docs/camera.md#calibration", json="print the result as JSON",
     )
     p.add_argument("images", nargs="*", metavar="IMAGES", help="chessboard photos (JPEG/PNG), all the same size")
     g = p.add_argument_group("chessboard")
@@ -69,7 +69,6 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("-o", "--output", metavar="YAML", help="write the camera YAML here (atomically)")
     cli.add_camera_flag(g, "with --row-time and no IMAGES: the camera whose row time is measured, written to -o")
     g.add_argument("--name", default="", metavar="NAME", help="the camera's name in the YAML (default: none)")
-    cli.common_flags(p, "print the result as JSON")
     return p
 
 
@@ -237,7 +236,10 @@ def _heights(shots: list[tuple[float, str]], led_radius_m: float, camera: Camera
             raise InputError(f"{path}: {gray.shape[1]} x {gray.shape[0]} px, but the camera has {camera.width_px} x "
                              f"{camera.height_px}; take the photos in the camera's own mode")
         radii.append(led_image_radius_px(gray, path))
-    fit = fit_heights([d for d, _ in shots], radii, led_radius_m)
+    try:
+        fit = fit_heights([d for d, _ in shots], radii, led_radius_m)
+    except InputError as exc:
+        raise InputError(f"--heights: {exc}") from None
     mean = sum(fit.distances_m) / len(fit.distances_m)
     return {"f0_px": fit.f0_px, "k_px_per_m": fit.k_px_per_m, "led_radius_m": led_radius_m, "mean_distance_m": mean,
             "focal_at_mean_px": fit.focal_at(mean),
@@ -249,7 +251,10 @@ def _blink_firmware(args) -> dict:
     from planner.calibration.blink import blink_timer, write_blink_firmware
 
     timer = blink_timer(args.blink_hz, args.mcu_clock_hz)
-    files = write_blink_firmware(Path(args.blink_firmware), timer)
+    try:
+        files = write_blink_firmware(Path(args.blink_firmware), timer)
+    except UsageError as exc:
+        raise UsageError(f"--blink-firmware {exc}") from None
     return {"dir": args.blink_firmware, "files": files, "blink_hz": timer.actual_hz, "prescaler": timer.prescaler,
             "compare": timer.compare, "mcu_clock_hz": timer.mcu_clock_hz}
 

@@ -1,8 +1,8 @@
-"""What every command shares: the parser, flag types, common flags, progress and ``console_main``.
+"""What every command shares: its parser (:func:`parser`), flag types and groups, output checks, progress.
 
-A command's ``main(argv)`` raises :class:`~planner.errors.PlannerError` so tests can
-call it in process; ``console_main`` turns errors into one line and an exit code
-(:class:`~planner.errors.ExitCode`), with the traceback only under ``--verbose``.
+Every ``vlp-*`` command builds its parser with :func:`parser`, so each ``--help`` has the same
+layout, the same ``--json``, ``-v/--verbose`` and ``--version`` and an epilog of the same form
+(exit codes, docs page); :func:`console_main` (:mod:`planner.cli.console`) runs it.
 """
 
 from __future__ import annotations
@@ -10,15 +10,16 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import signal
 import sys
-import traceback
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from planner import __version__
+from planner.cli.console import console_main as console_main  # every command's script: cli.console_main
+from planner.cli.console import one_line as one_line
+from planner.cli.console import worded as worded
 from planner.defaults import (
     CONGRUENCE_TOLERANCE_M,
     DISTORTION_RESIDUAL_PX,
@@ -37,7 +38,7 @@ from planner.defaults import (
     PRINCIPAL_ERROR_PX,
     UNIT_TO_M,
 )
-from planner.errors import ExitCode, InputError, PlannerError, PlannerWarning, UsageError
+from planner.errors import InputError, PlannerWarning, UsageError
 
 if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--help at once)
     from planner.camera.model import Camera
@@ -45,10 +46,40 @@ if TYPE_CHECKING:  # the stages load when a command runs, not when it parses (--
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse that raises UsageError instead of exiting, so main() stays testable."""
+    """argparse that raises UsageError instead of exiting, so main() stays testable; made by :func:`parser`."""
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(f"{message} (see {self.prog} --help)")
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse's layout, keeping the epilog's lines apart: each line of a text is wrapped on its own."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return "\n".join(super(HelpFormatter, self)._fill_text(line, width, indent) for line in text.splitlines())
+
+
+DOCS = "docs/cli.md"
+"""Where every command is listed, with its own page."""
+
+
+def parser(prog: str, description: str, *, ok: str, json: str, docs: str, check_failed: str | None = None,
+           bad_input: str = "", usage: str = "", note: str = "") -> Parser:
+    """The parser of the command ``prog``, with what every command has: ``--json`` (its help ``json``),
+    ``-v/--verbose``, ``--version`` and an epilog naming its exit codes and docs page.
+
+    ``ok`` says what exit 0 means, ``check_failed`` exit 3 (if the command has it); ``bad_input`` and
+    ``usage`` add to "1 bad input" and "2 usage error"; ``note`` is a line before the exit codes.
+    """
+    codes = [f"0 {ok}"] + ([f"3 {check_failed}"] if check_failed else [])
+    codes += [f"1 bad input{' ' + bad_input if bad_input else ''}", f"2 usage error{' ' + usage if usage else ''}"]
+    pages = docs if docs == DOCS else f"{docs}; every command: {DOCS}"
+    epilog = "\n".join([*([note] if note else []), f"Exit codes: {', '.join(codes)}.", f"Docs: {pages}."])
+    p = Parser(prog=prog, description=description, epilog=epilog, formatter_class=HelpFormatter)
+    p.add_argument("--json", action="store_true", help=json)
+    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"{prog} {__version__}")
+    return p
 
 
 def shown(text: str) -> str:
@@ -118,13 +149,6 @@ def positive_float(text: str) -> float:
 
 def non_negative_float(text: str) -> float:
     return _number(text, 0.0, strict=False)
-
-
-def common_flags(p: argparse.ArgumentParser, json_help: str) -> None:
-    """The flags every command has, last in its help: ``--json``, ``-v/--verbose``, ``--version``."""
-    p.add_argument("--json", action="store_true", help=json_help)
-    p.add_argument("-v", "--verbose", action="store_true", help="show tracebacks on errors")
-    p.add_argument("--version", action="version", version=f"{p.prog} {__version__}")
 
 
 def add_reading_flags(p: argparse.ArgumentParser, title: str, what: str) -> None:
@@ -330,91 +354,3 @@ def site_key(path: str | Path | None, *, env: bool = True, warn: bool = True) ->
         return site_key_from(raw, raw=from_file)
     except ValueError as exc:
         raise UsageError(f"{where}: {exc}") from None
-
-
-def one_line(text: str) -> str:
-    """``text`` with every non-printable character (newlines, controls, undecodable bytes) escaped,
-    so that what a hostile file holds cannot split, forge or break an error line."""
-    if text.isprintable():
-        return text
-    return "".join(c if c.isprintable() else _escaped(c) for c in text)
-
-
-def _escaped(c: str) -> str:
-    """One non-printable character as an escape: an undecodable byte (kept by ``surrogateescape``) as ``\\xNN``."""
-    if 0xDC80 <= ord(c) <= 0xDCFF:
-        return f"\\x{ord(c) - 0xDC00:02x}"
-    return c.encode("unicode_escape").decode("ascii")
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP arrived: raised like Ctrl-C, so every half-written output is removed on the way out."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-def _terminate(signum: int, frame) -> NoReturn:
-    raise Terminated(signum)
-
-
-def console_main(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str) -> int:
-    """Run ``command(argv)`` as the script ``name``: its exit code, or one line per error and the error's code.
-
-    SIGTERM and SIGHUP (a closed terminal, ``kill``, a CI timeout) unwind like Ctrl-C, so
-    staging folders and temporary files are removed; the exit code is 128 + the signal.
-    """
-    verbose = "-v" in (argv or sys.argv[1:]) or "--verbose" in (argv or sys.argv[1:])
-    before: dict[signal.Signals, Any] = {}  # the handlers to give back
-    try:
-        for sig in (signal.SIGTERM, signal.SIGHUP):
-            before[sig] = signal.signal(sig, _terminate)
-    except ValueError:  # not the main thread (a test calling main() from a worker): leave the defaults
-        pass
-    try:
-        return _run(argv, command, name, verbose)
-    finally:  # a caller in the same process (a test, a script) gets its own handlers back
-        for old, handler in before.items():
-            signal.signal(old, handler)
-
-
-def _run(argv: list[str] | None, command: Callable[[list[str] | None], int], name: str, verbose: bool) -> int:
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", PlannerWarning)
-            code = command(argv)
-        for w in caught:  # after the run: a run that fails prints its one error line alone
-            if issubclass(w.category, PlannerWarning):
-                print(f"{name}: warning: {one_line(str(w.message))}", file=sys.stderr)
-            else:
-                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-        return code
-    except PlannerError as exc:
-        if verbose:
-            traceback.print_exc()
-        print(f"{name}: error: {one_line(str(exc))}", file=sys.stderr)
-        return exc.exit_code
-    except BrokenPipeError:  # the reader went away (``| head``): stop quietly, as Unix tools do
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return ExitCode.BROKEN_PIPE
-    except Terminated as exc:
-        print(f"{name}: stopped by {exc}; no output was written", file=sys.stderr)
-        return 128 + exc.signum
-    except KeyboardInterrupt:
-        print(f"{name}: interrupted; no output was written", file=sys.stderr)
-        return ExitCode.INTERRUPTED
-    except OSError as exc:  # the system refused a read or write the checks could not foresee (a full disk)
-        if verbose:
-            traceback.print_exc()
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"{name}: error: {one_line(where)}{exc.strerror or exc}; nothing was written there (free space or "
-              "choose another place)", file=sys.stderr)
-        return ExitCode.INPUT
-    except Exception as exc:  # a bug: still one line, unless asked for more
-        if verbose:
-            traceback.print_exc()
-        print(f"{name}: internal error: {type(exc).__name__}: {one_line(str(exc))} (rerun with --verbose and report it)",
-              file=sys.stderr)
-        return ExitCode.INPUT
-

@@ -23,13 +23,12 @@ import signal
 import sys
 import tempfile
 import time
-import traceback
 import tty
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.cli import common as cli
-from planner.errors import PlannerError, UsageError
+from planner.errors import UsageError
 
 if TYPE_CHECKING:  # the simulator loads when the command runs, not when it parses (--help at once)
     from planner.flash.sim.bus import SimBus
@@ -37,31 +36,30 @@ if TYPE_CHECKING:  # the simulator loads when the command runs, not when it pars
 PROG = "vlp-driver-sim"
 
 
-def _parser() -> argparse.ArgumentParser:
-    p = cli.Parser(prog=PROG, description="Simulated luminaire drivers (docs/protocol.md) on a pseudo-terminal.")
+def build_parser() -> argparse.ArgumentParser:
+    p = cli.parser(PROG, "Simulated luminaire drivers (docs/protocol.md) on a pseudo-terminal.",
+                   ok="stopped by SIGTERM or SIGINT (Ctrl-C)", docs="docs/flashing.md, docs/protocol.md",
+                   json="print the port, the drivers' addresses and the flash folder as one JSON line on stdout, "
+                   "instead of the port alone")
     p.add_argument("--firmware", choices=("sim", "avr"), default="sim",
                    help="sim: the Python driver model (default); avr: the reference C firmware on emulated "
                         "ATmega328P MCUs (needs gcc-avr, avr-libc, simavr, libsimavr-dev)")
-    p.add_argument("--drivers", type=int, default=1, help="drivers sharing the line (default 1)")
-    p.add_argument("--first-address", type=int, default=1, help="bus address of the first driver (default 1)")
-    p.add_argument("--key-file", type=Path, required=True, help="site key: a file holding it in hex or raw (16-64 bytes)")
-    p.add_argument("--faults", default="", help="fault spec, e.g. corrupt=0.001,reset=0.01,power=0.01,stall=0.01,seed=3")
-    p.add_argument("--flash-dir", type=Path, help="folder of the drivers' flash files (default: a temporary folder)")
-    p.add_argument("--serial-prefix", help="serial number prefix (default SIM-, AVR- with --firmware avr)")
-    p.add_argument("--slot-size", type=int, help="bytes per slot (default 4096)")
-    p.add_argument("--max-block", type=int, help="most data bytes per WRITE (default 256)")
-    p.add_argument("--block-write-us", type=int, help="reported block programming time [us] (default 2000)")
-    p.add_argument("--eeprom-dir", type=Path, help="with --firmware avr: folder of the drivers' EEPROM images "
+    p.add_argument("--drivers", type=int, default=1, metavar="N", help="drivers sharing the line (default 1)")
+    p.add_argument("--first-address", type=int, default=1, metavar="N", help="bus address of the first driver (default 1)")
+    p.add_argument("--key-file", type=Path, required=True, metavar="FILE", help="site key: a file holding it in hex or raw (16-64 bytes)")
+    p.add_argument("--faults", default="", metavar="SPEC", help="fault spec, e.g. corrupt=0.001,reset=0.01,power=0.01,stall=0.01,seed=3")
+    p.add_argument("--flash-dir", type=Path, metavar="DIR", help="folder of the drivers' flash files (default: a temporary folder)")
+    p.add_argument("--serial-prefix", metavar="PREFIX", help="serial number prefix (default SIM-, AVR- with --firmware avr)")
+    p.add_argument("--slot-size", type=int, metavar="BYTES", help="bytes per slot (default 4096)")
+    p.add_argument("--max-block", type=int, metavar="BYTES", help="most data bytes per WRITE (default 256)")
+    p.add_argument("--block-write-us", type=int, metavar="US", help="reported block programming time [us] (default 2000)")
+    p.add_argument("--eeprom-dir", type=Path, metavar="DIR", help="with --firmware avr: folder of the drivers' EEPROM images "
                                                    "(default: a temporary folder)")
     p.add_argument("--trace", type=Path, metavar="DIR", help="with --firmware avr: write each driver's LED pin "
                                                               "to DIR/<address>.vcd")
-    p.add_argument("--build-dir", type=Path, help="with --firmware avr: where the firmware and emulator are built "
+    p.add_argument("--build-dir", type=Path, metavar="DIR", help="with --firmware avr: where the firmware and emulator are built "
                                                   "(default ~/.cache/vlp-plan/avr)")
-    cli.common_flags(p, "print the port, the drivers' addresses and the flash folder as one JSON line on stdout, "
-                        "instead of the port alone")
     return p
-
-
 
 
 def _wake_on_signals() -> tuple[int, int]:
@@ -107,7 +105,7 @@ def _send(master: int, data: bytes) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; raises :class:`PlannerError` on bad arguments."""
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     key = cli.site_key(args.key_file, env=False, warn=False)  # a test double: vlp-flash warns about the key
     sim_only = {"--faults": args.faults, "--flash-dir": args.flash_dir, "--slot-size": args.slot_size,
                 "--max-block": args.max_block, "--block-write-us": args.block_write_us}
@@ -195,15 +193,9 @@ def _main_avr(args: argparse.Namespace, key: bytes) -> int:
 
 
 def console_main(argv: list[str] | None = None) -> int:
-    """The ``vlp-driver-sim`` script: one line per error and a non-zero exit code."""
-    args = sys.argv[1:] if argv is None else argv
-    try:
-        return main(argv)
-    except PlannerError as exc:
-        if "-v" in args or "--verbose" in args:
-            traceback.print_exc()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+    """The ``vlp-driver-sim`` script: one line per error and a non-zero exit code (:func:`cli.console_main`; the
+    serving loop sets its own SIGTERM and SIGINT handling, which stops it with exit 0)."""
+    return cli.console_main(argv, main, PROG)
 
 
 if __name__ == "__main__":

@@ -32,14 +32,18 @@ if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(prog="vlp-flash", description="Flash luminaire drivers over a serial link with their configuration "
-                    "images, rebuilt from the plan (sealed under the site key by vlp-plan --key-file; they must equal "
-                    "the ones vlp-plan wrote in OUTDIR/firmware/) and "
-                    "signed with each driver's key (derived from the site key and the serial it reports); verify "
-                    "and journal each.",
-                    epilog="Exit codes: 0 all verified, 3 some drivers failed, 1 bad input (a plan not sealed under the "
-                    "site key, an image file that differs from the plan), 2 usage (or the port lost mid-batch: rerun with --resume). Docs: "
-                    "docs/flashing.md, docs/protocol.md.")
+    p = cli.parser(
+        "vlp-flash",
+        "Flash luminaire drivers over a serial link with their configuration "
+        "images, rebuilt from the plan (sealed under the site key by vlp-plan --key-file; they must equal "
+        "the ones vlp-plan wrote in OUTDIR/firmware/) and "
+        "signed with each driver's key (derived from the site key and the serial it reports); verify "
+        "and journal each.",
+        ok="all verified", check_failed="some drivers failed",
+        bad_input="(a plan not sealed under the site key or an image file that differs from the plan)",
+        usage="(or the port lost mid-batch: rerun with --resume)", docs="docs/flashing.md, docs/protocol.md",
+        json="print the outcome per driver as JSON on stdout (progress goes to stderr); needs --bus or --dry-run",
+    )
     p.add_argument("plan", metavar="PLAN", nargs="?", help="plan.yaml in a vlp-plan output directory")
     p.add_argument("names", metavar="LUMINAIRE", nargs="*", help="luminaires to flash (or --all)")
     p.add_argument("--all", action="store_true", help="every luminaire of the plan")
@@ -69,8 +73,6 @@ def build_parser() -> argparse.ArgumentParser:
                    "is checked only with a key)")
     p.add_argument("--verify-only", action="store_true", help="only check that each driver holds its image")
     p.add_argument("--list-ports", action="store_true", help="list the serial ports of this machine and exit")
-    cli.common_flags(p, "print the outcome per driver as JSON on stdout (progress goes to stderr); needs --bus or "
-                     "--dry-run")
     return p
 
 

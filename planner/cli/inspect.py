@@ -20,20 +20,19 @@ SHOWN = 12
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-inspect",
-        description="Show what a drawing (DXF or IFC) holds and what vlp-plan would read from it: layers and blocks "
+    p = cli.parser(
+        "vlp-inspect",
+        "Show what a drawing (DXF or IFC) holds and what vlp-plan would read from it: layers and blocks "
         "(IFC: storeys and classes) with counts, what the reader takes and rejects and why, the unit it chooses and "
         "its evidence, and the luminaires it ends with or the line it would stop with.",
-        epilog="Exit codes: 0 the drawing reads as a plannable layout, 1 it does not, 2 usage error. "
-        "Docs: docs/dxf.md, docs/ifc.md.",
+        ok="the drawing reads as a plannable layout", bad_input="(the drawing does not)",
+        docs="docs/dxf.md, docs/ifc.md", json="print the whole report as JSON",
     )
     p.add_argument("drawing", metavar="DRAWING", help="a .dxf or .ifc file")
     p.add_argument("--png", metavar="FILE", help="also draw the candidates (taken, rejected) over the drawing")
     p.add_argument("--leds", type=cli.count_up_to(MAX_LUMINAIRES), metavar="N",
                    help="read as vlp-plan --leds N would (the group of N among several)")
     cli.add_reading_flags(p, "reading (as vlp-plan)", "DRAWING")
-    cli.common_flags(p, "print the whole report as JSON")
     return p
 
 
@@ -49,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     from planner.layout.survey import draw_survey, survey
     options = cli.read_options(args)
     report = survey(args.drawing, args.leds, options)
+    if report["error"] is not None:  # the reader names its parameters; the user gave flags
+        report["error"] = cli.worded(report["error"])
     if png is not None and report.get("points"):
         from planner._files import write_atomically
 

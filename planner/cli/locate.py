@@ -28,12 +28,14 @@ if TYPE_CHECKING:  # the stages load when the command runs, not when it parses
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-locate",
-        description="Locate a receiver on a planned site from the LED ellipses it saw (IDs decoded, ellipses "
+    p = cli.parser(
+        "vlp-locate",
+        "Locate a receiver on a planned site from the LED ellipses it saw (IDs decoded, ellipses "
         "fitted; format in docs/positioning.md), or from a phone photo of the ceiling (--image; docs/photos.md). "
         "Luminaires are identified from the plan as the receiver would.",
-        epilog="Exit codes: 0 position found, 3 no trustworthy position, 1 bad input, 2 usage error.",
+        ok="position found", check_failed="no trustworthy position", docs="docs/positioning.md, docs/photos.md",
+        json="with --image: add every LED blob found (ellipse, stripe period, ID or why none), also "
+        "when no position is found; otherwise the output is JSON with or without it",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan")
     p.add_argument("observation", metavar="OBSERVATION.json", nargs="?",
@@ -53,8 +55,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise-px", type=cli.non_negative_float, default=NOISE_PX, metavar="PX",
                    help=f"with --simulate: edge-point noise [px] (default {NOISE_PX:g}; 0 gives exact ellipses)")
     p.add_argument("--seed", type=cli.seed, default=0, help="with --simulate: noise seed (default 0)")
-    cli.common_flags(p, "with --image: add every LED blob found (ellipse, stripe period, ID or why none), also "
-                     "when no position is found; otherwise the output is JSON with or without it")
     return p
 
 

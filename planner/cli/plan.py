@@ -33,16 +33,16 @@ from planner.errors import ExitCode, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-plan",
-        description="Plan LED IDs for camera-based visible light positioning: read a building drawing "
+    p = cli.parser(
+        "vlp-plan",
+        "Plan LED IDs for camera-based visible light positioning: read a building drawing "
         "(DXF) or a luminaire list (YAML/CSV), give every luminaire a short ID (the paper's region code, "
         "or shorter IDs that keep every camera window unique), verify the plan under a tilted camera, and "
         "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
-        epilog="Exit codes: 0 done, 1 bad input or no plan possible, 2 usage error, 3 plan written but some "
-        "sampled pose is ambiguous (only with an explicit --scheme), or the plan is NOT USABLE (under 50 % of "
-        "sampled poses decode; --allow-unusable exits 0). Docs: docs/cli.md.",
+        ok="done", check_failed="plan written but some sampled pose is ambiguous (only with an explicit --scheme), "
+        "or the plan is NOT USABLE (under 50 % of sampled poses decode; --allow-unusable exits 0)",
+        bad_input="or no plan possible", docs="docs/cli.md", json="print a JSON summary on stdout instead of text",
     )
     p.add_argument("layout", metavar="LAYOUT", nargs="?",
                    help="drawing or layout file: .dxf, .ifc, .yaml/.yml or .csv")
@@ -124,7 +124,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="do not write site-report.html and site-report.pdf (vlp-report writes them later)")
     g.add_argument("--timings", action="store_true",
                    help="after the summary, print each stage's wall-clock time on stderr, one line per stage")
-    cli.common_flags(p, "print a JSON summary on stdout instead of text")
     return p
 
 

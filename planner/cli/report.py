@@ -22,14 +22,15 @@ if TYPE_CHECKING:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-report",
-        description="Rebuild a plan's site report (site-report.html, self-contained, and site-report.pdf): "
+    p = cli.parser(
+        "vlp-report",
+        "Rebuild a plan's site report (site-report.html, self-contained, and site-report.pdf): "
         "summary, site map, coverage, expected error, frame timing, walking route, ID bill and the installers' "
         "checklist with each driver's flashing status from the as-built journal; with --photos, the as-built "
         "check of which luminaires play their planned ID.",
-        epilog="Exit codes: 0 report written, 3 report written but --photos shows a luminaire playing a wrong ID, "
-        "1 bad input, 2 usage error.",
+        ok="report written", check_failed="report written but --photos shows a luminaire playing a wrong ID",
+        docs="docs/report.md, docs/photos.md",
+        json="print what was written, the flashing counts and the as-built check as JSON",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan; its maps are read from beside it")
     p.add_argument("--journal", metavar="JSON",
@@ -41,7 +42,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--key-file", metavar="FILE", help="site key: check the plan's seal and the journal's, and refuse "
                    "either if it does not check (without it the journal's verified counts are its own word)")
     p.add_argument("-o", "--outdir", metavar="DIR", help="where to write the report (default: PLAN's directory)")
-    cli.common_flags(p, "print what was written, the flashing counts and the as-built check as JSON")
     return p
 
 

@@ -42,13 +42,13 @@ if TYPE_CHECKING:  # the stages (OpenCV, SciPy) load when the command runs, not 
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-twin",
-        description="Receiver twin: render the frame a rolling-shutter camera captures of the plan's luminaires "
+    p = cli.parser(
+        "vlp-twin",
+        "Receiver twin: render the frame a rolling-shutter camera captures of the plan's luminaires "
         "(each LED striped by its own frame), decode it as a receiver app does (blobs, ellipses, stripes, "
         "preamble, ID), identify the luminaires from the plan and locate; report every stage.",
-        epilog="Exit codes: 0 success rate reached --min-success (one pose: located), 3 it did not, 1 bad input, "
-        "2 usage. Docs: docs/twin.md.",
+        ok="success rate reached --min-success (one pose: located)", check_failed="it did not",
+        docs="docs/twin.md", json="print the result as JSON",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan")
     g = p.add_argument_group("poses")
@@ -79,7 +79,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"a fix this close to the truth counts as located [m] (default {TOLERANCE_M:g})")
     g.add_argument("--min-success", type=cli.share, default=0.99, metavar="SHARE",
                    help="batch: exit 3 below this success rate (default 0.99)")
-    cli.common_flags(p, "print the result as JSON")
     return p
 
 

@@ -25,31 +25,32 @@ from planner.errors import ExitCode
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.Parser(
-        prog="vlp-verify",
-        description="Verify a plan.yaml: sample camera poses over the site, and find every triangle of luminaires "
+    p = cli.parser(
+        "vlp-verify",
+        "Verify a plan.yaml: sample camera poses over the site, and find every triangle of luminaires "
         "that may be a window (the three LEDs the camera uses); check that each names exactly one place, "
         "against every other triple of the site; and check that every luminaire's frame sends its id.",
-        epilog="Exit codes: 0 every frame sends its luminaire's id, decodable everywhere sampled, no triangle that "
-        "may be a window reads like another triple and the plan usable (at least 50 % of sampled poses decode), 3 "
-        "otherwise (the luminaires and triples at fault are named; NOT USABLE exits 0 when the plan was made with "
-        "vlp-plan --allow-unusable; with --key-file, a seal that does not check), 1 bad input, 2 usage error. "
-        "After editing ids: vlp-plan --from-plan PLAN.",
+        ok="every frame sends its luminaire's id, decodable everywhere sampled, no triangle that may be a window "
+        "reads like another triple and the plan usable (at least 50 % of sampled poses decode)",
+        check_failed="otherwise (the luminaires and triples at fault are named; NOT USABLE exits 0 when the plan was "
+        "made with vlp-plan --allow-unusable; with --key-file, a seal that does not check)",
+        note="After editing ids: vlp-plan --from-plan PLAN.",
+        docs="docs/cli.md", json="print the verification summary as JSON",
     )
     p.add_argument("plan", metavar="PLAN", help="a plan.yaml written by vlp-plan (format vlp-plan/1)")
     cli.add_verify_flags(p)
     cli.add_parallel_flags(p)
     p.add_argument("--seed", type=cli.seed, default=0, help="seed of the pose sample (default 0)")
-    p.add_argument("--map", metavar="PNG", help="also write the coverage map to this file")
+    p.add_argument("--png", "--map", dest="map", metavar="FILE",
+                   help="also write the coverage map to this PNG (--map: the old name, kept for a release)")
     p.add_argument("--key-file", metavar="FILE", help="site key: also check the plan's seal (plan.yaml.seal); one that "
                    "does not check fails the plan (exit 3)")
-    cli.common_flags(p, "print the verification summary as JSON")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    map_path = cli.output_file("--map", args.map)
+    map_path = cli.output_file("--png", args.map)
 
     from planner._files import read_text
     from planner.flash.seal import SEAL_HINT, seal_problem

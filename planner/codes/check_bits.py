@@ -71,11 +71,11 @@ def lexicode(word_bits: int, distance: int, limit: int) -> list[int]:
 def check_code(alphabet: int, id_bits: int, distance: int) -> CheckCode:
     """The shortest lexicode with at least ``alphabet`` codewords at ``distance``."""
     if not 1 <= distance <= MAX_DISTANCE:
-        raise UsageError(f"--check-distance {distance}: must be from 1 to {MAX_DISTANCE}")
+        raise UsageError(f"`check_distance` {distance}: must be from 1 to {MAX_DISTANCE}")
     if distance == 1:
         return CheckCode(1, id_bits, id_bits, np.arange(alphabet, dtype=np.int64))
     for word_bits in range(id_bits + 1, MAX_WORD_BITS + 1):
         words = lexicode(word_bits, distance, alphabet)
         if len(words) == alphabet:
             return CheckCode(distance, word_bits, id_bits, np.array(words, dtype=np.int64))
-    raise UsageError(f"--check-distance {distance}: {alphabet} IDs need more than {MAX_WORD_BITS} bits; use less")
+    raise UsageError(f"`check_distance` {distance}: {alphabet} IDs need more than {MAX_WORD_BITS} bits; use less")

@@ -94,7 +94,7 @@ class Journal:
 
     def _read(self) -> dict[str, dict]:
         if self.path.is_dir():
-            raise UsageError(f"--journal {self.path}: is a folder; give a file name such as as-built.json")
+            raise UsageError(f"`journal` {self.path}: is a folder; give a file name such as as-built.json")
         if not self.path.exists():
             return {}
         try:
@@ -105,7 +105,7 @@ class Journal:
             raise InputError(f"{self.path}: not a {FORMAT} journal; move it away to start a new one")
         if doc.get("plan_hash") != self.plan_hash:
             raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan "
-                             f"({self.plan_hash}); give another --journal for a new plan")
+                             f"({self.plan_hash}); give another `journal` for a new plan")
         checked = validated(_JournalFile, doc, str(self.path), "a journal", strict=True,
                             hint="; the journal was edited or damaged: move it away to start a new one")
         if self._key is not None:
@@ -121,14 +121,14 @@ class Journal:
         """Refuse (before anything is flashed) a journal that could not be written: a missing or read-only folder."""
         with self._locked():
             if not os.access(self.path.parent, os.W_OK | os.X_OK):
-                raise UsageError(f"--journal {self.path}: the folder is not writable; choose another --journal")
+                raise UsageError(f"`journal` {self.path}: the folder is not writable; choose another `journal`")
 
     @contextmanager
     def _locked(self) -> Iterator[None]:
         try:
             fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o666)
         except OSError as exc:
-            raise UsageError(f"--journal {self.path}: cannot write there ({exc.strerror}); choose a folder that "
+            raise UsageError(f"`journal` {self.path}: cannot write there ({exc.strerror}); choose a folder that "
                              "exists and is writable") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)  # released when the file is closed

@@ -108,7 +108,7 @@ def pick_storey(groups: dict, storey: str | None, scale: float, where: str) -> s
     if storey is None:
         if len(groups) == 1:
             return next(iter(groups))
-        raise InputError(f"{where}: {len(groups)} storeys hold light fixtures: {listing()}; choose one with --storey NAME")
+        raise InputError(f"{where}: {len(groups)} storeys hold light fixtures: {listing()}; choose one with `storey` NAME")
     wanted = storey.strip().casefold()
     for key in groups:
         if key.casefold() == wanted:
@@ -121,7 +121,7 @@ def pick_storey(groups: dict, storey: str | None, scale: float, where: str) -> s
         for key, items in groups.items():
             if abs(_storey_z(items[0][1], scale) - elevation) < 0.01:
                 return key
-    raise InputError(f"{where}: --storey {storey!r} holds no light fixtures; storeys with fixtures: {listing()}")
+    raise InputError(f"{where}: `storey` {storey!r} holds no light fixtures; storeys with fixtures: {listing()}")
 
 
 def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: float | None = None,
@@ -147,10 +147,10 @@ def read_ifc(path: str | Path, *, storey: str | None = None, mount_height_m: flo
     path = Path(path)
     where = str(path)
     if units is not None:
-        raise UsageError(f"--units does not apply to {path.name}: an IFC model states its own length unit")
-    for flag, value in (("--height", mount_height_m), ("--radius", radius_m)):
+        raise UsageError(f"`units` does not apply to {path.name}: an IFC model states its own length unit")
+    for param, value in (("`mount_height_m`", mount_height_m), ("`radius_m`", radius_m)):
         if value is not None and not value > 0:
-            raise UsageError(f"{flag} {value} m must be positive")
+            raise UsageError(f"{param} {value} m must be positive")
     model = open_model(path)
     scale = float(ifc_unit.calculate_unit_scale(model))
     if not scale > 0:

@@ -134,8 +134,8 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     n = len(layout.luminaires)
     if expected is not None and n != expected:
         raise InputError(
-            f"{where}: found {n} luminaires but --leds says {expected}; "
-            "fix the drawing's layer/block selection or the --leds count"
+            f"{where}: found {n} luminaires but `leds` says {expected}; "
+            "fix the drawing's layer/block selection or the `leds` count"
         )
     if n > MAX_LUMINAIRES:
         raise InputError(f"{where}: {n:,} luminaires, more than the {MAX_LUMINAIRES:,} one plan holds; "
@@ -143,7 +143,7 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     if n < 3:
         raise InputError(
             f"{where}: only {n} luminaire(s) found; positioning needs at least 3 "
-            "(check the layer and block patterns, or use --leds N with a room outline)"
+            "(check the layer and block patterns, or use `leds` N with a room outline)"
         )
     names = [lum.name for lum in layout.luminaires]
     for name in names:
@@ -164,13 +164,13 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
             raise InputError(
                 f"{where}: luminaire {lum.name!r} at ({lum.x:g}, {lum.y:g}, {lum.z:g}) m, radius {lum.radius:g} m: "
                 f"outside what a building holds (|x|, |y| <= {MAX_EXTENT_M:g} m, 0 < z <= {MAX_HEIGHT_M:g} m, "
-                f"{MIN_RADIUS_M:g} m <= radius <= {MAX_RADIUS_M:g} m); check the units (--units), the height "
-                "(--height) or the radius (--radius)")
+                f"{MIN_RADIUS_M:g} m <= radius <= {MAX_RADIUS_M:g} m); check the units (`units`), the height "
+                "(`mount_height_m`) or the radius (`radius_m`)")
     if layout.outline is not None:
         corners = np.asarray(layout.outline, dtype=float)
         if not np.isfinite(corners).all() or np.abs(corners).max(initial=0.0) > MAX_EXTENT_M:
             raise InputError(f"{where}: the room outline has a corner that is not a number or beyond "
-                             f"{MAX_EXTENT_M:g} m; fix the outline's coordinates or its units (--units)")
+                             f"{MAX_EXTENT_M:g} m; fix the outline's coordinates or its units (`units`)")
     tree = cKDTree(xy)
     # many points and k=2: arrays (the stubs' return type also allows one point's scalars)
     dist, idx = cast("tuple[np.ndarray, np.ndarray]", tree.query(xy, k=2))
@@ -180,7 +180,7 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
         a, b = layout.luminaires[worst], layout.luminaires[int(idx[worst, 1])]
         raise InputError(
             f"{where}: luminaires {a.name!r} and {b.name!r} are {dist[worst, 1]:.3f} m apart, "
-            f"closer than their diameters; check the units (--units) or remove the duplicate "
+            f"closer than their diameters; check the units (`units`) or remove the duplicate "
             f"({describe(a)}; {describe(b)})"
         )
     return layout
@@ -224,7 +224,7 @@ def fill_outline(
     Returns the luminaires (named ``L0001``...) and a one-line description.
     """
     if count < 3:
-        raise InputError(f"--leds {count}: at least 3 luminaires are needed for positioning")
+        raise InputError(f"`leds` {count}: at least 3 luminaires are needed for positioning")
     theta = principal_angle_rad(outline)
     rot = np.array([[math.cos(theta), math.sin(theta)], [-math.sin(theta), math.cos(theta)]])
     local = outline @ rot.T
@@ -234,7 +234,7 @@ def fill_outline(
         raise InputError("room outline has no area; draw it as a closed polyline")
     room_m2 = area_m2(outline)
     if count * (2 * radius_m) ** 2 > room_m2:  # even a perfect packing could not keep the discs apart
-        raise InputError(f"--leds {count}: {count:,} luminaires of radius {radius_m:g} m do not fit in the "
+        raise InputError(f"`leds` {count}: {count:,} luminaires of radius {radius_m:g} m do not fit in the "
                          f"room's {room_m2:.1f} m2; ask for fewer (at most {int(room_m2 / (2 * radius_m) ** 2):,})")
     polygon = _PolygonPath(local)
     best = None

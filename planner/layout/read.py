@@ -60,9 +60,9 @@ def read_layout(path: str | Path, leds: int | None, options: ReadOptions = ReadO
 
 def _read_layout(path: Path, leds: int | None, options: ReadOptions) -> Layout:
     suffix = path.suffix.lower()
-    for flag, value, where in (("--room", options.room, ".dxf"), ("--storey", options.storey, ".ifc")):
+    for param, value, where in (("`room`", options.room, ".dxf"), ("`storey`", options.storey, ".ifc")):
         if value is not None and suffix != where:
-            raise UsageError(f"{flag} is for {where} drawings, not {path.name}")
+            raise UsageError(f"{param} is for {where} drawings, not {path.name}")
     if suffix == ".dxf":
         from planner.layout.dxf import read_dxf
 
@@ -85,7 +85,7 @@ def _read_layout(path: Path, leds: int | None, options: ReadOptions) -> Layout:
         if layout.outline is None:
             raise InputError(f"{path}: holds neither luminaires nor a room outline; nothing to plan")
         if leds is None:
-            raise InputError(f"{path}: holds a room outline but no luminaires; give --leds N to lay out N of them")
+            raise InputError(f"{path}: holds a room outline but no luminaires; give `leds` N to lay out N of them")
         height = options.mount_height_m or layout.fill_height_m or DEFAULT_MOUNT_HEIGHT_M
         radius = options.radius_m or layout.fill_radius_m or DEFAULT_RADIUS_M
         try:

@@ -102,13 +102,13 @@ def check_work(work: Work, max_poses: int | None) -> None:
     would not fit in the memory available) with the numbers and what to do."""
     if max_poses is not None:
         if work.poses > max_poses:
-            raise UsageError(f"this run asks {work.text()}, more than --max-poses {max_poses:,}; lower "
-                             "--poses-per-m2 or raise --max-poses")
+            raise UsageError(f"this run asks {work.text()}, more than `max_poses` {max_poses:,}; lower "
+                             "`poses_per_m2` or raise `max_poses`")
         return
     if work.poses > MAX_PLAN_POSES:
         raise UsageError(f"this run asks {work.text()}, more than the {MAX_PLAN_POSES:,} a run samples by default; "
-                         "lower --poses-per-m2, or raise --max-poses if the machine has the memory and time")
+                         "lower `poses_per_m2`, or raise `max_poses` if the machine has the memory and time")
     free = available_bytes()
     if free is not None and work.peak_bytes > free:
         raise UsageError(f"this run asks {work.text()}, but {free / 1e9:.1f} GB of memory is available; lower "
-                         "--poses-per-m2, or give --max-poses to run anyway")
+                         "`poses_per_m2`, or give `max_poses` to run anyway")

@@ -117,11 +117,11 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
 
 def _check_options(options: PlanOptions) -> None:
     if options.scheme not in SCHEMES:
-        raise UsageError(f"--scheme {options.scheme}: unknown scheme; use one of {', '.join(SCHEMES)}")
+        raise UsageError(f"`scheme` {options.scheme}: unknown scheme; use one of {', '.join(SCHEMES)}")
     if options.scheme == "auto" and not options.verify:
-        raise UsageError("--no-verify needs an explicit --scheme: auto chooses the scheme by verifying it")
+        raise UsageError("`verify=False` needs an explicit `scheme`: auto chooses the scheme by verifying it")
     if options.receiver not in RECEIVERS:
-        raise UsageError(f"--receiver {options.receiver}: unknown receiver; use one of {', '.join(RECEIVERS)}")
+        raise UsageError(f"`receiver` {options.receiver}: unknown receiver; use one of {', '.join(RECEIVERS)}")
     check_receiver(options.receiver, options.verify)
 
 

@@ -163,7 +163,7 @@ def rebuild(path: str | Path, outdir: str | Path | None, *, allow_unverified: bo
     said = failed_verdict(result) if not result.clean else verdict(judged)
     if not passed and not allow_unverified:
         raise InputError(f"{where}: fails verification, so no firmware was written: {said}; run vlp-verify {where} "
-                         "for the conflicts, fix the ids, or pass --allow-unverified to write it anyway")
+                         "for the conflicts, fix the ids, or pass `allow_unverified` to write it anyway")
     names = plan.names
     doc["generator"] = f"vlp-plan {__version__}"
     doc["verification"] = result.summary(names)

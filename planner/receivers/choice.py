@@ -51,8 +51,8 @@ def check_receiver(asked: str, verify: bool) -> None:
     """:class:`UsageError` if ``asked`` (a mode other than the paper's) is not to be verified; ``auto`` unverified
     is the paper's receiver."""
     if asked != AUTO and receiver_for(asked) is not PAPER and not verify:
-        raise UsageError(f"--receiver {asked} needs verification: the two-LED receiver is judged by "
-                         "verifying it; drop --no-verify")
+        raise UsageError(f"`receiver` {asked} needs verification: the two-LED receiver is judged by "
+                         "verifying it; drop `verify=False`")
 
 
 def choose(job: Job, asked: str, accelerometer_sigma_deg: float) -> tuple[Planned, ReceiverChoice | None]:

@@ -21,7 +21,7 @@ def test_the_timer_setting_is_the_finest_that_fits(hz, prescaler, compare):
 
 def test_rates_the_timer_cannot_make_are_refused():
     for hz in (50_000.0, 0.05):
-        with pytest.raises(UsageError, match="--blink-hz"):
+        with pytest.raises(UsageError, match="`blink_hz`"):
             blink_timer(hz, 16e6)
 
 

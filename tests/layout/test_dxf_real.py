@@ -208,7 +208,7 @@ def test_vlp_plan_plans_the_residential_layout(tmp_path, capsys):
 def test_a_failed_drawing_read_points_to_vlp_inspect(tmp_path):
     doc, _ = factory.residential()
     path = _save(tmp_path, doc)
-    with pytest.raises(InputError, match=r"found 12 luminaires but --leds says 11.*; vlp-inspect .*site\.dxf lists"):
+    with pytest.raises(InputError, match=r"found 12 luminaires but `leds` says 11.*; vlp-inspect .*site\.dxf lists"):
         read_layout(path, 11)
 
 

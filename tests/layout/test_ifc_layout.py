@@ -45,14 +45,14 @@ def test_ifc2x3_flow_terminals_typed_as_light_fixtures_in_feet(ifc2x3_feet):
 def test_ifc4_light_fixtures_in_millimetres_need_a_storey(ifc4_two_storeys):
     path, expected = ifc4_two_storeys
     with pytest.raises(InputError, match=r"2 storeys hold light fixtures: 'Ground' \(12 fixtures, floor at 0\.00 m\), "
-                                         r"'First' \(9 fixtures, floor at 3\.50 m\); choose one with --storey NAME"):
+                                         r"'First' \(9 fixtures, floor at 3\.50 m\); choose one with `storey` NAME"):
         read_layout(path, None)
     first = read_layout(path, 9, ReadOptions(storey="first"))
     assert_allclose(first.xyz, expected["First"], atol=1e-9)  # heights above the first floor, not 6.2 m
     assert first.unit == "mm" and {lum.source["entity"] for lum in first.luminaires} == {"IfcLightFixture"}
     ground = read_layout(path, 12, ReadOptions(storey="0"))  # by elevation [m]
     assert_allclose(ground.xyz, expected["Ground"], atol=1e-9)
-    with pytest.raises(InputError, match=r"--storey 'Roof' holds no light fixtures; storeys with fixtures: 'Ground'"):
+    with pytest.raises(InputError, match=r"`storey` 'Roof' holds no light fixtures; storeys with fixtures: 'Ground'"):
         read_layout(path, None, ReadOptions(storey="Roof"))
 
 
@@ -90,9 +90,9 @@ def test_ifc_room_outline_from_the_storeys_spaces(tmp_path, schema, unit):
 
 
 def test_ifc_flags_that_do_not_apply(ifc2x3_feet, tmp_path):
-    with pytest.raises(UsageError, match="--units does not apply"):
+    with pytest.raises(UsageError, match="`units` does not apply"):
         read_ifc(ifc2x3_feet[0], units="mm")
-    with pytest.raises(UsageError, match="--room is for .dxf drawings"):
+    with pytest.raises(UsageError, match="`room` is for .dxf drawings"):
         read_layout(ifc2x3_feet[0], None, ReadOptions(room="A"))
     bad = tmp_path / "bad.ifc"
     bad.write_text("ISO-10303-21;\nthis is not a model\nEND-ISO-10303-21;\n")

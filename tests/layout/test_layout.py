@@ -18,7 +18,7 @@ def test_check_accepts_a_plain_grid():
 
 @pytest.mark.parametrize("points,expected,message", [
     ([(0, 0), (1, 0)], None, "only 2 luminaire"),
-    ([(0, 0), (1, 0), (2, 0)], 4, "found 3 luminaires but --leds says 4"),
+    ([(0, 0), (1, 0), (2, 0)], 4, "found 3 luminaires but `leds` says 4"),
     ([(0, 0), (1, 0), (1.15, 0)], None, "closer than their diameters"),
 ])
 def test_check_rejects_bad_layouts_with_one_clear_line(points, expected, message):

@@ -56,7 +56,7 @@ def provision(path: Path, address: int, serial: str, key: bytes) -> None:
         os.chmod(path, 0o600)
         if path.stat().st_size != EEPROM_BYTES:
             raise UsageError(f"{path}: {path.stat().st_size} bytes, not a {EEPROM_BYTES}-byte EEPROM image; "
-                             "move it away or use another --eeprom-dir")
+                             "move it away or use another `eeprom_dir`")
         with open(path, "r+b") as f:
             f.write(provision_block(address, serial, key))
         path.chmod(0o600)  # it holds the driver's key
