@@ -73,10 +73,20 @@ class Scan:
     """(what, name, layer, why) -> count of the entities rejected (with all they hold)."""
     rejected_at: list[tuple[float, float, str]] = field(default_factory=list)
     """WCS plan position and name of every rejected entity (for pictures) [drawing units]."""
+    _decisions: dict[tuple[str, str | None], tuple[str, str]] = field(default_factory=dict)
     _block_radius: dict[str, float | None] = field(default_factory=dict)
     _block_size: dict[str, float | None] = field(default_factory=dict)
     _holds_blocks: dict[str, bool] = field(default_factory=dict)
     _annotation: dict[str, bool] = field(default_factory=dict)
+
+
+    def decide(self, layer: str, block: str | None) -> tuple[str, str]:
+        """The selector's decision for an INSERT of ``block`` (``None``: a CIRCLE or POINT) on ``layer``, once per
+        name pair (a drawing of 100,000 luminaires has a handful)."""
+        key = (layer, block)
+        if key not in self._decisions:
+            self._decisions[key] = self.selector.entity(layer) if block is None else self.selector.insert(layer, block)
+        return self._decisions[key]
 
 
 def scan(file: str, selector: Selector, msp) -> Scan:
@@ -142,7 +152,7 @@ def _walk(s: Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry
         if kind == "INSERT":
             _visit_insert(s, entity, layer, m, ancestry)
         elif kind in ("CIRCLE", "POINT"):
-            action, why = s.selector.entity(layer)
+            action, why = s.decide(layer, None)
             if action == "reject":
                 s.rejected[(kind, "", layer, why)] += 1
                 at = Vec3(entity.dxf.center if kind == "CIRCLE" else entity.dxf.location)
@@ -196,7 +206,7 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
     name = _effective_name(insert)
     s.blocks_seen[name] += 1
     block = insert.block()
-    action, why = s.selector.insert(layer, name)
+    action, why = s.decide(layer, name)
     if action == "take" and not why.startswith("block matches") and _annotation_only(s, block):
         action, why = "reject", "block draws only text, leaders or arrowheads"
     if action == "reject" and why.startswith("layer") and _holds_blocks(s, block):

@@ -1,0 +1,72 @@
+"""The DXF loader's filter (planner/layout/dxf_load.py): what it skims past, what it keeps, and its cap."""
+
+from __future__ import annotations
+
+import ezdxf
+import pytest
+
+import planner.layout.dxf_load as dxf_load
+from planner.errors import InputError
+from planner.layout.dxf import load_drawing, read_dxf, scan_dxf
+
+
+@pytest.fixture
+def drawing(tmp_path):
+    """Four luminaires in metres with what the reader does not use around them: furniture lines and a 2D
+    polyline (its VERTEX entities go with it), a hatch, a block reference with attributes, a paper-space line."""
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 6
+    msp = doc.modelspace()
+    for x, y in ((0, 0), (2.4, 0), (0, 2.4), (2.4, 2.4)):
+        msp.add_circle((x, y, 2.8), 0.1, dxfattribs={"layer": "LIGHTS"})
+    msp.add_lwpolyline([(-1, -1), (4, -1), (4, 4), (-1, 4)], close=True, dxfattribs={"layer": "WALLS"})
+    for k in range(5):
+        msp.add_line((k, 0), (k, 1), dxfattribs={"layer": "FURNITURE"})
+    msp.add_polyline2d([(0, 0), (1, 0), (1, 1)], dxfattribs={"layer": "FURNITURE"})
+    msp.add_polyline2d([(0, 0), (3, 0), (3, 3)], dxfattribs={"layer": "WALLS"})
+    msp.add_hatch(dxfattribs={"layer": "FLOOR"}).paths.add_polyline_path([(0, 0), (1, 0), (1, 1)])
+    tag = doc.blocks.new("TAG")
+    tag.add_attdef("NAME", (0, 0))
+    msp.add_blockref("TAG", (5, 5), dxfattribs={"layer": "TAGS"}).add_auto_attribs({"NAME": "Office"})
+    doc.paperspace().add_line((0, 0), (1, 1), dxfattribs={"layer": "SHEET"})
+    path = tmp_path / "room.dxf"
+    doc.saveas(path)
+    return path
+
+
+def test_the_reader_loads_only_what_it_uses_and_counts_the_rest(drawing):
+    found, doc, notes = scan_dxf(drawing)
+    kinds = sorted(e.dxftype() for e in doc.modelspace())
+    assert kinds == ["CIRCLE"] * 4 + ["INSERT", "LWPOLYLINE", "POLYLINE"], kinds
+    assert found.layers_seen["FURNITURE"] == 6 and found.layers_seen["FLOOR"] == 1, found.layers_seen
+    assert "SHEET" not in found.layers_seen  # paper space is not the plan
+    polyline = doc.modelspace().query("POLYLINE")[0]
+    assert len(polyline.vertices) == 3  # the wall polyline kept its vertices
+    insert = doc.modelspace().query("INSERT")[0]
+    assert [a.dxf.text for a in insert.attribs] == ["Office"]
+    layout = read_dxf(drawing)
+    assert len(layout.luminaires) == 4 and layout.unit == "m" and layout.outline is not None
+
+
+def test_a_copy_loads_the_whole_drawing(drawing):
+    doc, notes = load_drawing(drawing)
+    assert notes == []
+    assert len(doc.modelspace().query("LINE[layer=='FURNITURE']")) == 5 and len(doc.modelspace().query("HATCH")) == 1
+    assert len(doc.paperspace().query("LINE")) == 1
+
+
+def test_over_the_cap_the_reader_refuses_and_a_copy_keeps_what_the_reader_uses(drawing, monkeypatch):
+    counted = dxf_load._Skim(True, 10**9)
+    for _ in counted(dxf_load._pairs(str(drawing))):
+        pass
+    skimmed = dxf_load._Skim(False, 10**9)
+    for _ in skimmed(dxf_load._pairs(str(drawing))):
+        pass
+    assert skimmed.loaded < counted.loaded
+    monkeypatch.setattr(dxf_load, "MAX_DXF_ENTITIES", skimmed.loaded)  # the reader's share fits, the whole does not
+    doc, notes = load_drawing(drawing)
+    assert not doc.modelspace().query("HATCH") and len(doc.modelspace().query("CIRCLE")) == 4
+    assert len(notes) == 1 and "only the luminaires, texts and walls were loaded (7 other entities left out)" in notes[0]
+    monkeypatch.setattr(dxf_load, "MAX_DXF_ENTITIES", skimmed.loaded - 1)
+    with pytest.raises(InputError, match=f"more than {skimmed.loaded - 1:,} block references, circles"):
+        read_dxf(drawing)
