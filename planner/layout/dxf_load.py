@@ -43,6 +43,10 @@ MAX_RECOVER_BYTES = 64 << 20
 """Largest damaged DXF file recovered [bytes]: ``ezdxf.recover`` loads all of it, so the cap is the entity cap's
 size (about 500,000 entities of 120 bytes)."""
 
+PRECOUNT_BYTES = 16 << 20
+"""ASCII files larger than this [bytes] are counted before ezdxf reads them; in a smaller file ezdxf holds at most
+the cap's entities before the filter stops it (a few hundred MB at worst), and is spared the second pass."""
+
 USED = frozenset({"INSERT", "CIRCLE", "POINT", "TEXT", "MTEXT"})
 """Entity kinds the reader takes anywhere in the model space."""
 WALLS = frozenset({"LINE", "LWPOLYLINE", "POLYLINE"})
@@ -150,10 +154,10 @@ def _pairs(where: str) -> Iterator[tuple[int, str]]:
                 return
 
 
-def _load(where: str, binary: bool, everything: bool) -> tuple[Drawing, _Skim]:
-    """Count what would be loaded (ASCII files: a cheap pass, so a drawing over the cap costs no memory), then load
-    it through the filter; raises :class:`_TooMany` when over the cap."""
-    if not binary:  # a binary DXF is read whole by ezdxf's loader anyway; the filter's own count bounds it
+def _load(where: str, size: int, binary: bool, everything: bool) -> tuple[Drawing, _Skim]:
+    """Count what would be loaded (ASCII files over :data:`PRECOUNT_BYTES`: a cheap pass, so a drawing over the cap
+    costs no memory), then load it through the filter; raises :class:`_TooMany` when over the cap."""
+    if not binary and size > PRECOUNT_BYTES:  # a binary DXF is read whole by ezdxf's loader anyway
         for _ in _Skim(everything, MAX_DXF_ENTITIES)(_pairs(where)):  # type: ignore[arg-type]
             pass
     skim = _Skim(everything, MAX_DXF_ENTITIES)
@@ -189,11 +193,11 @@ def open_drawing(path: str | Path, *, everything: bool = False) -> Loaded:
                          "or delete what the plan does not need (furniture, hatches, 3D) and export again")
     try:
         try:
-            doc, skim = _load(where, binary, everything)
+            doc, skim = _load(where, size, binary, everything)
         except _TooMany:
             if not everything:
                 raise
-            doc, skim = _load(where, binary, False)
+            doc, skim = _load(where, size, binary, False)
             return Loaded(doc, [], skim.skipped, whole=False)
         return Loaded(doc, [], skim.skipped)
     except _TooMany:
