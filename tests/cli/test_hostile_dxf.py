@@ -82,18 +82,33 @@ def test_more_luminaire_candidates_than_the_cap_is_one_line(tmp_path):
     assert peak_kb < MEMORY_BOUND_KB, peak_kb
 
 
-def test_a_dense_drawing_in_the_wrong_unit_is_one_line(tmp_path):
-    """20,164 luminaires 0.6 m apart in metres, read with --units mm: every part within merging reach of every
-    other (billions of pairs, out of memory before); now counted first and refused."""
+def _dense(path: Path, insunits: int) -> Path:
+    """20,164 luminaires 0.6 m apart in metres (circles of 0.1 m at 2.8 m) under ``$INSUNITS`` ``insunits``."""
     doc = ezdxf.new("R2010")
-    doc.header["$INSUNITS"] = 6
+    doc.header["$INSUNITS"] = insunits
     msp = doc.modelspace()
     for i in range(142):
         for j in range(142):
             msp.add_circle((0.6 * i, 0.6 * j, 2.8), 0.1, dxfattribs={"layer": "LIGHTS"})
-    doc.saveas(tmp_path / "dense.dxf")
-    code, out, err, peak_kb = _run("vlp-plan", [str(tmp_path / "dense.dxf"), "--units", "mm", "-o",
-                                                str(tmp_path / "out"), *FAST], tmp_path)
+    doc.saveas(path)
+    return path
+
+
+def test_a_dense_drawing_in_metres_without_a_unit_is_read_in_metres(tmp_path):
+    """The guess measures it in every unit; in millimetres every part is within merging reach of every other, which
+    is counted, not listed (4.9 GB once), and the guess says metres."""
+    code, out, err, peak_kb = _run("vlp-inspect", [str(_dense(tmp_path / "dense.dxf", 0))], tmp_path)
+    assert code == 0, err
+    assert "20164 luminaires" in out and "unit     m" in out and "$INSUNITS is unset" in out, out
+    assert peak_kb < MEMORY_BOUND_KB, peak_kb
+
+
+def test_a_dense_drawing_in_the_wrong_unit_is_one_line(tmp_path):
+    """The same drawing read with --units mm: every part within merging reach of every other (billions of pairs,
+    out of memory before); now counted first and refused."""
+    dense = _dense(tmp_path / "dense.dxf", 6)
+    code, out, err, peak_kb = _run("vlp-plan", [str(dense), "--units", "mm", "-o", str(tmp_path / "out"), *FAST],
+                                   tmp_path)
     lines = [line for line in err.splitlines() if line.strip()]
     assert code in (1, 2) and len(lines) == 1 and lines[0].startswith("vlp-plan: error: "), err
     assert "--units mm looks wrong" in lines[0] and "20,164 luminaire parts" in lines[0], lines
