@@ -12,13 +12,13 @@ from planner.layout.dxf import load_drawing, read_dxf, scan_dxf
 
 @pytest.fixture
 def drawing(tmp_path):
-    """Four luminaires in metres with what the reader does not use around them: furniture lines and a 2D
+    """16 luminaires in metres (0.8 m apart) with what the reader does not use around them: furniture lines and a 2D
     polyline (its VERTEX entities go with it), a hatch, a block reference with attributes, a paper-space line."""
     doc = ezdxf.new("R2010")
     doc.header["$INSUNITS"] = 6
     msp = doc.modelspace()
-    for x, y in ((0, 0), (2.4, 0), (0, 2.4), (2.4, 2.4)):
-        msp.add_circle((x, y, 2.8), 0.1, dxfattribs={"layer": "LIGHTS"})
+    for k in range(16):
+        msp.add_circle((0.8 * (k % 4), 0.8 * (k // 4), 2.8), 0.1, dxfattribs={"layer": "LIGHTS"})
     msp.add_lwpolyline([(-1, -1), (4, -1), (4, 4), (-1, 4)], close=True, dxfattribs={"layer": "WALLS"})
     for k in range(5):
         msp.add_line((k, 0), (k, 1), dxfattribs={"layer": "FURNITURE"})
@@ -37,7 +37,7 @@ def drawing(tmp_path):
 def test_the_reader_loads_only_what_it_uses_and_counts_the_rest(drawing):
     found, doc, notes = scan_dxf(drawing)
     kinds = sorted(e.dxftype() for e in doc.modelspace())
-    assert kinds == ["CIRCLE"] * 4 + ["INSERT", "LWPOLYLINE", "POLYLINE"], kinds
+    assert kinds == ["CIRCLE"] * 16 + ["INSERT", "LWPOLYLINE", "POLYLINE"], kinds
     assert found.layers_seen["FURNITURE"] == 6 and found.layers_seen["FLOOR"] == 1, found.layers_seen
     assert "SHEET" not in found.layers_seen  # paper space is not the plan
     polyline = doc.modelspace().query("POLYLINE")[0]
@@ -45,7 +45,7 @@ def test_the_reader_loads_only_what_it_uses_and_counts_the_rest(drawing):
     insert = doc.modelspace().query("INSERT")[0]
     assert [a.dxf.text for a in insert.attribs] == ["Office"]
     layout = read_dxf(drawing)
-    assert len(layout.luminaires) == 4 and layout.unit == "m" and layout.outline is not None
+    assert len(layout.luminaires) == 16 and layout.unit == "m" and layout.outline is not None
 
 
 def test_a_copy_loads_the_whole_drawing(drawing):
@@ -65,8 +65,24 @@ def test_over_the_cap_the_reader_refuses_and_a_copy_keeps_what_the_reader_uses(d
     assert skimmed.loaded < counted.loaded
     monkeypatch.setattr(dxf_load, "MAX_DXF_ENTITIES", skimmed.loaded)  # the reader's share fits, the whole does not
     doc, notes = load_drawing(drawing)
-    assert not doc.modelspace().query("HATCH") and len(doc.modelspace().query("CIRCLE")) == 4
+    assert not doc.modelspace().query("HATCH") and len(doc.modelspace().query("CIRCLE")) == 16
     assert len(notes) == 1 and "only the luminaires, texts and walls were loaded (7 other entities left out)" in notes[0]
     monkeypatch.setattr(dxf_load, "MAX_DXF_ENTITIES", skimmed.loaded - 1)
     with pytest.raises(InputError, match=f"more than {skimmed.loaded - 1:,} block references, circles"):
         read_dxf(drawing)
+
+
+def test_the_annotated_copy_of_a_drawing_over_the_cap_is_partial_and_says_so(drawing, tmp_path, monkeypatch, capsys):
+    from planner.cli import plan
+
+    skimmed = dxf_load._Skim(False, 10**9)
+    for _ in skimmed(dxf_load._pairs(str(drawing))):
+        pass
+    monkeypatch.setattr(dxf_load, "MAX_DXF_ENTITIES", skimmed.loaded)
+    assert plan.console_main([str(drawing), "-o", str(tmp_path / "out"), "--scheme", "unique", "--no-verify",
+                              "--no-report", "--no-map", "--no-firmware"]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warned) == 1 and warned[0].startswith("vlp-plan: warning: room-vlp.dxf holds the luminaires, texts "
+                                                     "and walls of room.dxf, not all of it: more than"), warned
+    copy = ezdxf.readfile(tmp_path / "out" / "room-vlp.dxf").modelspace()
+    assert not copy.query("HATCH") and len(copy.query("TEXT[layer=='VLP-ID']")) == 16
