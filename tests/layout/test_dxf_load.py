@@ -86,3 +86,25 @@ def test_the_annotated_copy_of_a_drawing_over_the_cap_is_partial_and_says_so(dra
                                                      "and walls of room.dxf, not all of it: more than"), warned
     copy = ezdxf.readfile(tmp_path / "out" / "room-vlp.dxf").modelspace()
     assert not copy.query("HATCH") and len(copy.query("TEXT[layer=='VLP-ID']")) == 16
+
+
+@pytest.mark.parametrize("version", ["R12", "R2000"])
+@pytest.mark.parametrize("fmt", ["asc", "bin"])
+def test_r12_and_binary_drawings_are_skimmed_alike(version, fmt, tmp_path):
+    """R12 polylines carry their VERTEX entities in the ENTITIES section; a binary DXF comes through ezdxf's binary
+    tag loader: the same luminaires, outline and layer counts either way."""
+    doc = ezdxf.new(version)
+    msp = doc.modelspace()
+    for k in range(16):
+        msp.add_circle((800 * (k % 4), 800 * (k // 4), 2800), 100, dxfattribs={"layer": "LIGHTS"})
+    for k in range(50):
+        msp.add_line((k, 0), (k, 1), dxfattribs={"layer": "FURNITURE"})
+    msp.add_polyline2d([(0, 0), (1, 0), (1, 1)], dxfattribs={"layer": "FURNITURE"})
+    msp.add_polyline2d([(-1000, -1000), (4000, -1000), (4000, 4000), (-1000, 4000)], close=True,
+                       dxfattribs={"layer": "WALLS"})
+    doc.saveas(tmp_path / "r.dxf", fmt=fmt)
+    found, loaded, _ = scan_dxf(tmp_path / "r.dxf")
+    assert dict(found.layers_seen) == {"LIGHTS": 16, "FURNITURE": 51, "WALLS": 1}
+    assert len(loaded.modelspace()) == 17
+    layout = read_dxf(tmp_path / "r.dxf")
+    assert len(layout.luminaires) == 16 and layout.unit == "mm" and len(layout.outline) == 4
