@@ -30,6 +30,20 @@ from planner.layout.dxf_load import MAX_DXF_ENTITIES  # noqa: E402
 FAST = ["--scheme", "unique", "--no-verify", "--no-report", "--no-map", "--no-firmware"]
 
 
+def nested(path: Path, levels: int, _kind: str = "nested") -> Path:
+    """Blocks nesting blocks, ten references a level, around one luminaire circle: ``10**levels`` luminaires."""
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 4
+    doc.blocks.new("B0").add_circle((0, 0), 100, dxfattribs={"layer": "LIGHTS"})
+    for level in range(1, levels + 1):
+        block = doc.blocks.new(f"B{level}")
+        for k in range(10):
+            block.add_blockref(f"B{level - 1}", (k * 2400 * 10 ** (level - 1), 0))
+    doc.modelspace().add_blockref(f"B{levels}", (0, 0))
+    doc.saveas(path)
+    return path
+
+
 def drawing(path: Path, extra: int, kind: str, insunits: int = 4) -> Path:
     """48 circles on LIGHTS 2.4 m apart (mm) and ``extra`` spliced entities: tiny LINEs on FURNITURE, POINTs on
     LIGHTS 2.4 m apart (luminaires), or ``dense`` circles 0.6 m apart in metres (no luminaires of the 48)."""
@@ -69,6 +83,7 @@ CASES = {
     "lines-100000 plan": ("line", 100_000, "vlp-plan", FAST),
     "points-100000 inspect": ("point", 100_000, "vlp-inspect", []),
     "points-over-cap plan": ("point", MAX_DXF_ENTITIES, "vlp-plan", FAST),
+    "nested-blocks-10^7 inspect": ("nested", 7, "vlp-inspect", []),
     "dense-20164-m plan": ("dense", 20_164, "vlp-plan", FAST),
     "dense-20164-m --units mm": ("dense", 20_164, "vlp-plan", ["--units", "mm", *FAST]),
 }
@@ -77,17 +92,18 @@ CASES = {
 
 def run(name: str, folder: Path) -> str:
     kind, count, command, flags = CASES[name]
-    path = drawing(folder / f"{kind}-{count}.dxf", count, kind)
+    path = (nested if kind == "nested" else drawing)(folder / f"{kind}-{count}.dxf", count, kind)
     argv = [str(path), *(["-o", str(folder / "out")] if command == "vlp-plan" else []), *flags]
     exe = str(Path(sys.executable).parent / command)
-    with open(folder / "stderr", "w") as err, open(os.devnull, "w") as out:
+    with open(folder / "stderr", "w") as err, open(folder / "stdout", "w") as out:
         start = time.perf_counter()
         pid = os.posix_spawn(exe, [command, *argv], os.environ,
                              file_actions=[(os.POSIX_SPAWN_DUP2, out.fileno(), 1), (os.POSIX_SPAWN_DUP2, err.fileno(), 2)])
         _, status, usage = os.wait4(pid, 0)
         wall = time.perf_counter() - start
     code = os.waitstatus_to_exitcode(status)
-    last = ([line for line in (folder / "stderr").read_text().splitlines() if "error" in line] or [""])[-1]
+    said = (folder / "stderr").read_text().splitlines() + (folder / "stdout").read_text().splitlines()
+    last = ([line for line in said if "error" in line or "would stop" in line] or [""])[-1]
     outcome = ("read" if command == "vlp-inspect" else "planned") if code == 0 else f"exit {code}: {last.split(': ', 2)[-1][:60]}..."
     size = path.stat().st_size / 1e6
     return (f"| {name} | {size:.0f} MB | {wall:.1f} | {usage.ru_utime + usage.ru_stime:.1f} | "

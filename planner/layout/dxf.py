@@ -29,7 +29,7 @@ from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
 from planner.layout.dxf_load import MAX_DXF_ENTITIES, open_drawing
 from planner.layout.dxf_names import PRESETS, selector
-from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, scan
+from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, WalkTooLong, scan
 from planner.layout.dxf_units import HEIGHT_RANGE_M, UNIT_NAMES, Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
 from planner.layout.outline import floor_outline, off_floor, own_extent
@@ -160,7 +160,11 @@ def scan_dxf(path: str | Path, *, preset: str = "auto", layers: list[str] | None
     if len(msp) == 0 and not loaded.skipped:
         damaged = " (after recovering the damaged file)" if notes else ""
         raise InputError(f"{path}: the model space is empty{damaged}; export the plan in model space, not only in a layout")
-    found = scan(path.name, chosen, msp)
+    try:
+        found = scan(path.name, chosen, msp)
+    except WalkTooLong as exc:
+        raise InputError(f"{path}: {exc}; select the luminaires with --layer or --block, explode or purge nested "
+                         "blocks, or split the drawing") from None
     found.layers_seen.update(loaded.skipped)  # entities skimmed past unloaded (dxf_load) still count by layer
     _check_numbers(found, str(path))
     return found, doc, notes

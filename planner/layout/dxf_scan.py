@@ -24,6 +24,15 @@ OUTLINE_LAYERS = ("*WALL*", "*ROOM*", "*OUTLINE*", "A-AREA*", "DLX_*ROOM*")
 """Layers whose closed polylines are room-outline candidates (fnmatch, case-insensitive)."""
 
 _MAX_DEPTH = 16  # block nesting depth followed; deeper (or cyclic) references are ignored
+MAX_VISITS = 2_000_000
+"""Most entities one walk visits, those inside blocks once per reference (blocks nesting blocks multiply: ten
+levels of ten references are ten billion); about a minute of walking."""
+MAX_PARTS = 400_000
+"""Most luminaire parts taken: four per luminaire at :data:`planner.defaults.MAX_LUMINAIRES`."""
+
+
+class WalkTooLong(Exception):
+    """The walk passed :data:`MAX_VISITS` or :data:`MAX_PARTS`; the message says which (the caller adds the file)."""
 _REVIT_APPID = "REVIT"
 _NOT_GEOMETRY = frozenset({"TEXT", "MTEXT", "ATTDEF", "ATTRIB", "DIMENSION", "LEADER", "MULTILEADER", "POINT"})
 _TEXTS = frozenset({"TEXT", "MTEXT", "ATTDEF", "ATTRIB"})
@@ -73,6 +82,7 @@ class Scan:
     """(what, name, layer, why) -> count of the entities rejected (with all they hold)."""
     rejected_at: list[tuple[float, float, str]] = field(default_factory=list)
     """WCS plan position and name of every rejected entity (for pictures) [drawing units]."""
+    visits: int = 0
     _decisions: dict[tuple[str, str | None], tuple[str, str]] = field(default_factory=dict)
     _block_radius: dict[str, float | None] = field(default_factory=dict)
     _block_size: dict[str, float | None] = field(default_factory=dict)
@@ -140,6 +150,12 @@ def _source(s: Scan, entity, kind: str, layer: str, ancestry: tuple) -> dict:
 def _walk(s: Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry: tuple) -> None:
     """Collect luminaire parts and outline candidates; ``m`` maps these entities to WCS."""
     for entity in entities:
+        s.visits += 1
+        if s.visits > MAX_VISITS or len(s.parts) > MAX_PARTS:
+            raise WalkTooLong(
+                f"more than {MAX_PARTS:,} luminaire parts taken (4 per luminaire at the limit)" if len(s.parts) > MAX_PARTS
+                else f"its blocks, each reference walked, hold more than {MAX_VISITS:,} entities (blocks nested in "
+                     f"blocks multiply: {ancestry[0].dxf.name if ancestry else 'the model space'} ...)")
         try:
             layer = entity.dxf.get("layer", "0")
         except ezdxf.DXFError:  # an entity type ezdxf does not know (a damaged or foreign file): not ours
