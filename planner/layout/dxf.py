@@ -18,11 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
 
-import ezdxf
 import numpy as np
-from ezdxf import recover
 from ezdxf.document import Drawing
-from ezdxf.lldxf.validator import is_binary_dxf_file, is_dwg_file, is_dxf_file
 from matplotlib.path import Path as PolygonPath
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -30,9 +27,10 @@ from scipy.spatial import cKDTree
 
 from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
+from planner.layout.dxf_load import MAX_DXF_ENTITIES, open_drawing
 from planner.layout.dxf_names import PRESETS, selector
-from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, scan
-from planner.layout.dxf_units import HEIGHT_RANGE_M, Figures, choose_unit
+from planner.layout.dxf_scan import OUTLINE_LAYERS, Scan, WalkTooLong, scan
+from planner.layout.dxf_units import HEIGHT_RANGE_M, UNIT_NAMES, Figures, choose_unit
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire, area_m2
 from planner.layout.outline import floor_outline, off_floor, own_extent
 
@@ -49,40 +47,14 @@ Z_NOISE = 1e-6
 
 
 def load_drawing(path: str | Path) -> tuple[Drawing, list[str]]:
-    """Open a DXF file, recovering a damaged one; returns the drawing and notes on what was fixed."""
-    path = Path(path)
-    where = str(path)
-    if not path.is_file():
-        raise InputError(f"{where}: file not found; check the path")
-    try:
-        is_dxf = is_binary_dxf_file(where) or is_dxf_file(where)
-        is_dwg = not is_dxf and is_dwg_file(where)
-    except OSError as exc:
-        raise InputError(f"{where}: cannot read the file ({exc.strerror or exc}); check its permissions") from exc
-    if is_dwg:
-        raise InputError(f"{where}: this is a DWG file, not DXF; save it as DXF from the CAD program")
-    if not is_dxf:
-        raise InputError(f"{where}: not a DXF file; export the drawing as DXF, or give a .yaml/.csv layout")
-    try:
-        return ezdxf.readfile(where), []
-    except OSError as exc:
-        raise InputError(f"{where}: cannot read the file ({exc.strerror or exc}); check its permissions") from exc
-    except (ezdxf.DXFError, ValueError, KeyError, IndexError, TypeError, EOFError, StopIteration) as exc:  # damaged: recover
-        first = exc
-    try:
-        doc, auditor = recover.readfile(where)
-    except Exception as exc:  # recover is the last resort: any failure means unreadable
-        why = " ".join(str(exc).split())  # ezdxf quotes the damaged line, carriage return and all
-        raise InputError(f"{where}: damaged DXF that could not be recovered ({why}); re-export the drawing") from exc
-    fixed = [e.message for e in auditor.fixes]
-    note = f"recovered a damaged DXF; the auditor fixed {len(fixed)} problem(s)"
-    if fixed:
-        note += ": " + "; ".join(fixed[:3]) + ("; ..." if len(fixed) > 3 else "")
-    else:
-        note += f" (read error: {first})"
-    if auditor.errors:
-        note += f"; {len(auditor.errors)} problem(s) left unfixed: {auditor.errors[0].message}"
-    return doc, [note]
+    """Open a whole DXF file (for a copy or a picture), recovering a damaged one; returns the drawing and notes on
+    what was fixed. A drawing over :data:`~planner.layout.dxf_load.MAX_DXF_ENTITIES` comes back holding what the
+    reader uses (luminaires, texts, walls), with a note saying so."""
+    loaded = open_drawing(path, everything=True)
+    if not loaded.whole:
+        loaded.notes.append(f"more than {MAX_DXF_ENTITIES:,} entities: only the luminaires, texts and walls were "
+                            f"loaded ({sum(loaded.skipped.values()):,} other entities left out)")
+    return loaded.doc, loaded.notes
 
 
 DENSE_PAIRS_PER_PART = 50
@@ -90,8 +62,19 @@ DENSE_PAIRS_PER_PART = 50
 handful of parts, never 50)."""
 
 
+def _too_dense(xy_m: np.ndarray, radius_m: np.ndarray) -> bool:
+    """Whether the parts lie so close for their merge size that merging them would list more than
+    ``DENSE_PAIRS_PER_PART`` pairs per part (counted, not listed: linear memory)."""
+    if len(xy_m) <= DENSE_PAIRS_PER_PART:
+        return False
+    tree = cKDTree(xy_m)
+    reach = float(np.maximum(0.5 * radius_m, MERGE_MIN_M).max())
+    return bool(tree.count_neighbors(tree, reach) > DENSE_PAIRS_PER_PART * len(xy_m))
+
+
 def _clusters(xy_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
-    """Cluster label per part, numbered in order of each cluster's first part."""
+    """Cluster label per part, numbered in order of each cluster's first part (callers check
+    :func:`_too_dense` first: the pairs listed are then at most ``DENSE_PAIRS_PER_PART`` per part)."""
     n = len(xy_m)
     if n < 2:
         return np.zeros(n, dtype=int)
@@ -139,11 +122,10 @@ class _Parts:
         if len(self.xyz):
             xy = self.xyz[:, :2] * scale
             radius = self.merge_radius_m(scale, given_m)
-            tree = cKDTree(xy)
-            reach = float(np.maximum(0.5 * radius, MERGE_MIN_M).max())
-            if len(xy) > DENSE_PAIRS_PER_PART and tree.count_neighbors(tree, reach) > DENSE_PAIRS_PER_PART * len(xy):
+            if _too_dense(xy, radius):
                 # At this scale the parts lie far closer than the size they merge by: no unit the drawing is in.
                 # Merging would list billions of pairs (gigabytes); the parts' own spacing, on a sample, says so.
+                tree = cKDTree(xy)
                 sample = xy[np.random.default_rng(0).choice(len(xy), min(len(xy), 2_000), replace=False)]
                 dist = cast(np.ndarray, tree.query(sample, k=2)[0])
                 z = self.xyz[:, 2][self.xyz[:, 2] != 0] * scale
@@ -172,12 +154,18 @@ def scan_dxf(path: str | Path, *, preset: str = "auto", layers: list[str] | None
     """Open a drawing and walk its model space: what it holds, what the reader takes and rejects (and why)."""
     path = Path(path)
     chosen = selector(preset, layers, blocks)
-    doc, notes = load_drawing(path)
+    loaded = open_drawing(path)
+    doc, notes = loaded.doc, loaded.notes
     msp = doc.modelspace()
-    if len(msp) == 0:
+    if len(msp) == 0 and not loaded.skipped:
         damaged = " (after recovering the damaged file)" if notes else ""
         raise InputError(f"{path}: the model space is empty{damaged}; export the plan in model space, not only in a layout")
-    found = scan(path.name, chosen, msp)
+    try:
+        found = scan(path.name, chosen, msp)
+    except WalkTooLong as exc:
+        raise InputError(f"{path}: {exc}; select the luminaires with --layer or --block, explode or purge nested "
+                         "blocks, or split the drawing") from None
+    found.layers_seen.update(loaded.skipped)  # entities skimmed past unloaded (dxf_load) still count by layer
     _check_numbers(found, str(path))
     return found, doc, notes
 
@@ -240,6 +228,11 @@ def read_dxf(
     insunits = int(doc.header.get("$INSUNITS", 0) or 0)
     unit, reason, unit_notes = choose_unit(lambda s: parts.figures(s, radius_m, biggest), insunits, units, where)
     scale = UNIT_TO_M[unit]
+    if _too_dense(xyz[:, :2] * scale, parts.merge_radius_m(scale, radius_m)):
+        fix = f"--units {units} looks wrong" if units is not None else "pass the drawing's unit with --units"
+        raise InputError(f"{where}: in {UNIT_NAMES[unit]}, the {len(xyz):,} luminaire parts lie far closer together "
+                         f"than their size (more than {DENSE_PAIRS_PER_PART} within merging reach of each): no lit "
+                         f"ceiling looks like that; {fix}")
     outline, outline_notes = _outline(found, scale, room, where)
     luminaires, lum_notes = _luminaires(found, parts, scale, radius_m, mount_height_m, expected, where, outline,
                                         room is not None)

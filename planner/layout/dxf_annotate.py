@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import os
+import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from importlib import resources
@@ -23,7 +24,7 @@ from ezdxf.enums import TextEntityAlignment
 
 from planner._files import write_bytes_atomically
 from planner.defaults import UNIT_TO_M
-from planner.errors import InputError
+from planner.errors import InputError, PlannerWarning
 from planner.layout.dxf import load_drawing
 from planner.layout.model import Layout
 
@@ -104,7 +105,10 @@ def write_annotated_dxf(
         source = Path(source_path)
         if _same_file(dest, source):
             raise InputError(f"{dest}: refusing to overwrite the source drawing; choose another output directory")
-        doc, _ = load_drawing(source)
+        doc, notes = load_drawing(source)
+        if any(note.startswith("more than") for note in notes):  # a drawing over the loader's cap
+            warnings.warn(PlannerWarning(f"{dest.name} holds the luminaires, texts and walls of {source.name}, not "
+                                         f"all of it: {notes[-1]}"), stacklevel=2)
         scale = UNIT_TO_M[layout.unit]
         _remove_layer_entities(doc, (ID_LAYER,))
     else:

@@ -24,6 +24,15 @@ OUTLINE_LAYERS = ("*WALL*", "*ROOM*", "*OUTLINE*", "A-AREA*", "DLX_*ROOM*")
 """Layers whose closed polylines are room-outline candidates (fnmatch, case-insensitive)."""
 
 _MAX_DEPTH = 16  # block nesting depth followed; deeper (or cyclic) references are ignored
+MAX_VISITS = 2_000_000
+"""Most entities one walk visits, those inside blocks once per reference (blocks nesting blocks multiply: ten
+levels of ten references are ten billion); about a minute of walking."""
+MAX_PARTS = 400_000
+"""Most luminaire parts taken: four per luminaire at :data:`planner.defaults.MAX_LUMINAIRES`."""
+
+
+class WalkTooLong(Exception):
+    """The walk passed :data:`MAX_VISITS` or :data:`MAX_PARTS`; the message says which (the caller adds the file)."""
 _REVIT_APPID = "REVIT"
 _NOT_GEOMETRY = frozenset({"TEXT", "MTEXT", "ATTDEF", "ATTRIB", "DIMENSION", "LEADER", "MULTILEADER", "POINT"})
 _TEXTS = frozenset({"TEXT", "MTEXT", "ATTDEF", "ATTRIB"})
@@ -73,10 +82,21 @@ class Scan:
     """(what, name, layer, why) -> count of the entities rejected (with all they hold)."""
     rejected_at: list[tuple[float, float, str]] = field(default_factory=list)
     """WCS plan position and name of every rejected entity (for pictures) [drawing units]."""
+    visits: int = 0
+    _decisions: dict[tuple[str, str | None], tuple[str, str]] = field(default_factory=dict)
     _block_radius: dict[str, float | None] = field(default_factory=dict)
     _block_size: dict[str, float | None] = field(default_factory=dict)
     _holds_blocks: dict[str, bool] = field(default_factory=dict)
     _annotation: dict[str, bool] = field(default_factory=dict)
+
+
+    def decide(self, layer: str, block: str | None) -> tuple[str, str]:
+        """The selector's decision for an INSERT of ``block`` (``None``: a CIRCLE or POINT) on ``layer``, once per
+        name pair (a drawing of 100,000 luminaires has a handful)."""
+        key = (layer, block)
+        if key not in self._decisions:
+            self._decisions[key] = self.selector.entity(layer) if block is None else self.selector.insert(layer, block)
+        return self._decisions[key]
 
 
 def scan(file: str, selector: Selector, msp) -> Scan:
@@ -130,6 +150,12 @@ def _source(s: Scan, entity, kind: str, layer: str, ancestry: tuple) -> dict:
 def _walk(s: Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry: tuple) -> None:
     """Collect luminaire parts and outline candidates; ``m`` maps these entities to WCS."""
     for entity in entities:
+        s.visits += 1
+        if s.visits > MAX_VISITS or len(s.parts) > MAX_PARTS:
+            raise WalkTooLong(
+                f"more than {MAX_PARTS:,} luminaire parts taken (4 per luminaire at the limit)" if len(s.parts) > MAX_PARTS
+                else f"its blocks, each reference walked, hold more than {MAX_VISITS:,} entities (blocks nested in "
+                     f"blocks multiply: {ancestry[0].dxf.name if ancestry else 'the model space'} ...)")
         try:
             layer = entity.dxf.get("layer", "0")
         except ezdxf.DXFError:  # an entity type ezdxf does not know (a damaged or foreign file): not ours
@@ -142,7 +168,7 @@ def _walk(s: Scan, entities, m: Matrix44 | None, inherited: str | None, ancestry
         if kind == "INSERT":
             _visit_insert(s, entity, layer, m, ancestry)
         elif kind in ("CIRCLE", "POINT"):
-            action, why = s.selector.entity(layer)
+            action, why = s.decide(layer, None)
             if action == "reject":
                 s.rejected[(kind, "", layer, why)] += 1
                 at = Vec3(entity.dxf.center if kind == "CIRCLE" else entity.dxf.location)
@@ -196,7 +222,7 @@ def _visit_insert(s: Scan, insert, layer: str, m: Matrix44 | None, ancestry: tup
     name = _effective_name(insert)
     s.blocks_seen[name] += 1
     block = insert.block()
-    action, why = s.selector.insert(layer, name)
+    action, why = s.decide(layer, name)
     if action == "take" and not why.startswith("block matches") and _annotation_only(s, block):
         action, why = "reject", "block draws only text, leaders or arrowheads"
     if action == "reject" and why.startswith("layer") and _holds_blocks(s, block):
