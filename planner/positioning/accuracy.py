@@ -10,6 +10,7 @@ centre. The budget runs each term alone and all together on the same poses.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -33,6 +34,7 @@ from planner.positioning.error_terms import (
 from planner.positioning.gravity import accelerometer, locate_gravity, window_order  # the twin's accelerometer too
 from planner.positioning.locate import METHODS
 from planner.positioning.observation import Sighting
+from planner.positioning.perspective import locate_perspective
 
 if TYPE_CHECKING:
     from planner.verify.windows import PoseSample
@@ -77,12 +79,15 @@ def _trial_pose(aim: np.ndarray, azimuth: float, tilt_deg: float, rng: np.random
 
 
 def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTerms = PIXEL_ONLY,
-                     radius_m: float = PAPER_RADIUS_M, seed: int = 0, camera: Camera | None = None) -> list[Trials]:
+                     radius_m: float = PAPER_RADIUS_M, seed: int = 0, camera: Camera | None = None,
+                     model: ErrorTerms | None = None) -> list[Trials]:
     """Table 3 in simulation: 16 test points x ``trials`` at each tilt, both methods on the same images.
 
     The rig is installed afresh for every trial (``terms.install_m``); the poses depend on
-    ``seed`` only, so runs with other terms see the same poses.
+    ``seed`` only, so runs with other terms see the same poses. The perspective fit weighs its
+    residuals by ``model`` (default ``terms``; :func:`solver`).
     """
+    fits = {name: solver(name, model or terms) for name in METHODS}
     camera = camera or Camera()
     rngs = streams(seed)
     radii = np.full(len(PAPER_LEDS_M), radius_m)
@@ -99,8 +104,8 @@ def paper_experiment(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTe
                 if len(seen.index) < 3:
                     unusable += 1
                     continue
-                for name, method in METHODS.items():
-                    errors[name].append(_error(method, seen, PAPER_LEDS_M, radii, camera.ideal(), position))
+                for name, fit in fits.items():
+                    errors[name].append(_error(fit, seen, PAPER_LEDS_M, radii, camera.ideal(), position))
         out.append(Trials(float(tilt), {m: np.array(v) for m, v in errors.items()}, unusable))
     return out
 
@@ -114,13 +119,20 @@ def budget_runs(terms: ErrorTerms) -> dict[str, ErrorTerms]:
 def paper_budget(tilts_deg=PAPER_TILTS_DEG, trials: int = 10, terms: ErrorTerms = DEFAULT_TERMS,
                  radius_m: float = PAPER_RADIUS_M, seed: int = 0,
                  camera: Camera | None = None) -> dict[str, list[Trials]]:
-    """:func:`paper_experiment` for every run of :func:`budget_runs`, on the same poses (runs with the same
-    terms, such as ``all`` and the one term switched on, are simulated once)."""
+    """:func:`paper_experiment` for every run of :func:`budget_runs`, on the same poses and with the same
+    receiver (weighing by ``terms`` in every run: only the world changes); runs with the same terms, such as
+    ``all`` and the one term switched on, are simulated once."""
     done: dict[ErrorTerms, list[Trials]] = {}
     for t in budget_runs(terms).values():
         if t not in done:
-            done[t] = paper_experiment(tilts_deg, trials, t, radius_m, seed, camera)
+            done[t] = paper_experiment(tilts_deg, trials, t, radius_m, seed, camera, terms)
     return {name: done[t] for name, t in budget_runs(terms).items()}
+
+
+def solver(method: str, terms: ErrorTerms):
+    """A three-LED method of :data:`~planner.positioning.locate.METHODS` as a simulation runs it: the
+    perspective fit weighs its residuals by ``terms`` (it is told the budget's model, never its draws)."""
+    return functools.partial(locate_perspective, terms=terms) if method == "perspective" else METHODS[method]
 
 
 def _error(method, seen, xyz, radii, camera, truth) -> float:
@@ -294,7 +306,7 @@ def site_accuracy(xyz: np.ndarray, radii: np.ndarray, outline, camera: Camera, m
         for name, run in budget_runs(terms).items():
             budget[name] = _quantiles(errors[:len(first)] if name == "all" else
                                       site_errors(xyz, radii, first, camera, method, run, seed,
-                                                  accelerometer_sigma_rad))
+                                                  accelerometer_sigma_rad, terms))
     return SiteAccuracy(method, terms, poses.position, errors, cell, budget)
 
 
@@ -307,9 +319,11 @@ def _quantiles(errors: np.ndarray) -> tuple[int, float | None, float | None]:
 
 def site_errors(xyz: np.ndarray, radii: np.ndarray, poses: Poses, camera: Camera, method: str = "perspective",
                 terms: ErrorTerms = PIXEL_ONLY, seed: int = 0,
-                accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)) -> np.ndarray:
+                accelerometer_sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG),
+                model: ErrorTerms | None = None) -> np.ndarray:
     """Error [m] of ``method`` at every pose with ``terms`` at work (NaN where the pose gives no position),
-    identities known; the site is installed once (``terms.install_m``).
+    identities known; the site is installed once (``terms.install_m``). The fits weigh their residuals by
+    ``model`` (default ``terms``: the budget's model, never its draws).
 
     ``gravity`` is the two-LED receiver: every pose draws the accelerometer's vertical (error
     ``terms.gravity_rad``, the twin's model), two whole LEDs suffice, the two whose rays are nearest
@@ -319,17 +333,18 @@ def site_errors(xyz: np.ndarray, radii: np.ndarray, poses: Poses, camera: Camera
     believed = camera.ideal()
     out = np.full(len(poses), np.nan)
     rotations = poses.rotation
-    error = _PER_POSE.get(method, _window_error)(method, xyz, radii, believed, terms, rngs, accelerometer_sigma_rad)
+    error = _PER_POSE.get(method, _window_error)(method, xyz, radii, believed, terms, model or terms, rngs,
+                                                 accelerometer_sigma_rad)
     for k in range(len(poses)):
         seen = observe_with(poses.position[k], rotations[k], leds, radii, camera, terms, rngs)
         out[k] = error(seen, rotations[k], poses.position[k])
     return out
 
 
-def _window_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Camera, terms: ErrorTerms, rngs: dict,
-                  accelerometer_sigma_rad: float):
+def _window_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Camera, terms: ErrorTerms,
+                  model: ErrorTerms, rngs: dict, accelerometer_sigma_rad: float):
     """Per-pose error [m] of ``method`` on three or more whole LEDs (NaN with fewer)."""
-    fix = METHODS[method]
+    fix = solver(method, model)
 
     def error(seen: Sighting, rotation: np.ndarray, position: np.ndarray) -> float:
         return _error(fix, seen, xyz, radii, believed, position) if len(seen.index) >= 3 else np.nan
@@ -337,8 +352,8 @@ def _window_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Cam
     return error
 
 
-def _gravity_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Camera, terms: ErrorTerms, rngs: dict,
-                   accelerometer_sigma_rad: float):
+def _gravity_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Camera, terms: ErrorTerms,
+                   model: ErrorTerms, rngs: dict, accelerometer_sigma_rad: float):
     """Per-pose error [m] of the gravity method: every pose draws the accelerometer's vertical; two whole LEDs, the
     two whose rays are nearest the optical axis first (its window), suffice (NaN with fewer)."""
 
@@ -348,7 +363,7 @@ def _gravity_error(method: str, xyz: np.ndarray, radii: np.ndarray, believed: Ca
             return np.nan
         order = window_order(np.array([e.centre for e in seen.ellipses]), believed)
         seen = Sighting(seen.index[order], [seen.ellipses[i] for i in order])
-        return _error(lambda x, r, e, c: locate_gravity(x, r, e, c, g, accelerometer_sigma_rad),
+        return _error(lambda x, r, e, c: locate_gravity(x, r, e, c, g, accelerometer_sigma_rad, model),
                       seen, xyz, radii, believed, position)
 
     return error

@@ -26,7 +26,9 @@ class Fix:
 
     ``rotation`` is the camera-to-site rotation (columns: the camera's x, y, z axes);
     ``residual_px`` the RMS difference between the ellipses seen and the exact images
-    of the LEDs at this pose [px]; ``used`` indices of the LEDs the method used.
+    of the LEDs at this pose [px] (the perspective and gravity fits: at the pose of their fit
+    weighing every residual alike, how well any pose explains the image; their position comes
+    from the weighted fit after it); ``used`` indices of the LEDs the method used.
     """
 
     position: np.ndarray

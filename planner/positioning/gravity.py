@@ -25,7 +25,10 @@ from planner.camera.ellipse import Ellipse
 from planner.camera.model import Camera
 from planner.defaults import ACCELEROMETER_SIGMA_DEG
 from planner.errors import PositioningError
+from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.positioning.fix import Fix, observed, residuals_batch, rms
+from planner.positioning.perspective import ROBUST_SIGMAS
+from planner.positioning.uncertainty import residual_sigmas
 from planner.positioning.undistort import ideal_ellipses
 
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -60,29 +63,37 @@ def two_point_pose(xyz2: np.ndarray, rays2: np.ndarray, gravity_cam: np.ndarray)
 
 def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
                    ellipses: list[Ellipse], gravity_cam: np.ndarray, sigma_rad: float,
-                   camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
-    """Least squares over the pose on every LED's exact image against its ellipse (centre and shape,
-    whitened by one pixel; ellipses undistorted by
-    :func:`planner.positioning.undistort.ideal_ellipses`) and on gravity (whitened by
-    ``sigma_rad``). Returns the position, rotation and the ellipses' RMS residual [px]."""
+                   camera: Camera, terms: ErrorTerms | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least squares over the pose on every LED's exact image against its ellipse (centre and shape;
+    ellipses undistorted by :func:`planner.positioning.undistort.ideal_ellipses`) and on gravity
+    (whitened by ``sigma_rad``). The ellipses' residuals are whitened by one pixel, or with ``terms`` by
+    their standard deviations under that budget (:mod:`planner.positioning.uncertainty`), robust beyond
+    :data:`~planner.positioning.perspective.ROBUST_SIGMAS`. Returns the position, rotation and the
+    ellipses' RMS residual, unweighted [px]."""
     undistorted, ideal = ideal_ellipses(ellipses, camera)
     centres, shapes = observed(undistorted)
     g = np.asarray(gravity_cam, float) / np.linalg.norm(gravity_cam)
     args = (rotation, xyz, radii, centres, shapes, ideal)
+    w = 1.0 if terms is None else 1.0 / residual_sigmas(centres, shapes, radii, ideal, terms)
 
     def fun(x):
         rot = rotation @ Rotation.from_rotvec(x[:3]).as_matrix()
-        return np.r_[residuals_batch(x[None], *args)[0], np.cross(g, rot.T @ DOWN) / max(sigma_rad, 1e-9)]
+        return np.r_[residuals_batch(x[None], *args)[0] * w, np.cross(g, rot.T @ DOWN) / max(sigma_rad, 1e-9)]
 
-    fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], method="lm", x_scale="jac")
+    if terms is None:
+        fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], method="lm", x_scale="jac")
+    else:
+        fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], x_scale="jac", loss="soft_l1", f_scale=ROBUST_SIGMAS)
     rot = rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
-    return fit.x[3:], rot, rms(fit.fun[:-3])
+    return fit.x[3:], rot, rms(fit.fun[:-3] / w)
 
 
 def locate_gravity(xyz: np.ndarray, radii: np.ndarray, ellipses, camera: Camera, gravity_cam: np.ndarray,
-                   sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG)) -> Fix:
+                   sigma_rad: float = math.radians(ACCELEROMETER_SIGMA_DEG), terms: ErrorTerms = DEFAULT_TERMS) -> Fix:
     """Camera pose from two or more identified LEDs (``xyz`` N x 3 [m]), their ellipses and gravity
-    (camera frame, pointing down); the first two LEDs give the closed-form start."""
+    (camera frame, pointing down); the first two LEDs give the closed-form start. As the perspective fit:
+    the fit with every ellipse residual weighed alike gives ``residual_px``, a second weighed by ``terms``
+    (the budget's model) the position."""
     xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
     if len(xyz) < 2:
         raise PositioningError(f"{len(xyz)} usable LED{'s' if len(xyz) != 1 else ''}: a fix with gravity needs two")
@@ -91,6 +102,8 @@ def locate_gravity(xyz: np.ndarray, radii: np.ndarray, ellipses, camera: Camera,
     position, rotation = two_point_pose(xyz[:2], rays[:2], gravity_cam)
     position, rotation, residual = refine_gravity(position, rotation, xyz, radii, ellipses, gravity_cam, sigma_rad,
                                                   camera)
+    position, rotation, _ = refine_gravity(position, rotation, xyz, radii, ellipses, gravity_cam, sigma_rad, camera,
+                                           terms)
     return Fix(position, rotation, residual, "gravity", np.arange(len(xyz)))
 
 

@@ -20,6 +20,7 @@ from planner.camera.ellipse import Ellipse, centre_and_shape
 from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import MAX_RESIDUAL_PX
 from planner.errors import InputError, PositioningError
+from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.positioning.fix import Fix, anchor_triple, bearings, check_geometry, ellipse_residuals, rms
 from planner.positioning.gravity import locate_gravity, refine_gravity, two_point_pose, window_order
 from planner.positioning.paper import distance_weak_perspective, locate_paper
@@ -38,17 +39,21 @@ METHODS = {"perspective": locate_perspective, "paper": locate_paper}
 @dataclass(frozen=True)
 class Site:
     """The planned luminaires: names, centres (N x 3) [m], radii (N,) [m], IDs (N,); for a gravity plan,
-    the longest two-LED window its receiver reads [m] (None: no cap; docs/verification.md)."""
+    the longest two-LED window its receiver reads [m] (None: no cap; docs/verification.md); the error
+    budget the perspective and gravity fits weigh their measurements by (the plan's, else the defaults)."""
 
     names: list[str]
     xyz: np.ndarray
     radii: np.ndarray
     ids: np.ndarray
     window_length_cap_m: float | None = None
+    terms: ErrorTerms = DEFAULT_TERMS
 
     @classmethod
     def from_plan(cls, plan: PlanFile) -> Site:
-        return cls(plan.names, plan.xyz, plan.radii, plan.ids, plan.window_length_cap_m)
+        recorded = plan.accuracy.terms if plan.accuracy is not None else None
+        return cls(plan.names, plan.xyz, plan.radii, plan.ids, plan.window_length_cap_m,
+                   ErrorTerms.from_dict(recorded) if recorded else DEFAULT_TERMS)
 
 
 @dataclass(frozen=True)
@@ -123,9 +128,9 @@ def _refit(site: Site, snap: Snapshot, luminaires: np.ndarray, leds: list[int]) 
     ellipses = [snap.ellipses[k] for k in leds]
     xyz, radii = site.xyz[luminaires], site.radii[luminaires]
     if snap.gravity is not None:
-        fix = locate_gravity(xyz, radii, ellipses, snap.camera, snap.gravity, snap.gravity_sigma_rad)
+        fix = locate_gravity(xyz, radii, ellipses, snap.camera, snap.gravity, snap.gravity_sigma_rad, site.terms)
     else:
-        fix = locate_perspective(xyz, radii, ellipses, snap.camera)
+        fix = locate_perspective(xyz, radii, ellipses, snap.camera, site.terms)
     return fix.position, fix.rotation
 
 
@@ -166,7 +171,7 @@ def identify(site: Site, snap: Snapshot, max_residual_px: float = MAX_RESIDUAL_P
                     continue
                 tried.add(tuple(lum))
                 check_geometry(site.xyz[lum])
-                fix = locate_perspective(site.xyz[lum], site.radii[lum], snap.ellipses, cam)
+                fix = locate_perspective(site.xyz[lum], site.radii[lum], snap.ellipses, cam, site.terms)
                 if fix.residual_px > max_residual_px:
                     best_rejected = min(best_rejected, fix.residual_px)
                 else:
@@ -227,7 +232,7 @@ def identify_gravity(site, snap, max_residual_px: float = MAX_RESIDUAL_PX):
             tried.add(tuple(lum))
             order = [first, second] + [k for k in range(n) if k not in (first, second)]
             fix = locate_gravity(site.xyz[lum[order]], site.radii[lum[order]], [snap.ellipses[k] for k in order],
-                                 cam, snap.gravity, snap.gravity_sigma_rad)
+                                 cam, snap.gravity, snap.gravity_sigma_rad, site.terms)
             if fix.residual_px > max_residual_px:
                 best_rejected = min(best_rejected, fix.residual_px)
             else:

@@ -6,8 +6,12 @@ weak-perspective position (P3P loses a root when two roots nearly coincide), the
 ellipse sizes and shapes pick the best start, and a least-squares refinement
 over every LED seen matches each predicted exact disc image (its dual conic,
 :func:`planner.camera.model.disc_dual_conic`) to the fitted ellipse: centre and shape
-matrix, five residuals per LED in pixels. ``docs/positioning.md`` compares this with
-the paper's weak-perspective method.
+matrix, five residuals per LED in pixels. That fit, every residual weighed alike, says
+how well one pose explains the image (``residual_px``, what identification checks); the
+position comes from a second fit from there with each residual divided by its standard
+deviation under the error budget (:mod:`planner.positioning.uncertainty`: centres tens of
+pixels, shapes about one), robust beyond three of them. ``docs/positioning.md`` compares
+this with the paper's weak-perspective method.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from scipy.spatial.transform import Rotation
 from planner.camera.ellipse import Ellipse
 from planner.camera.model import Camera
 from planner.errors import PositioningError
+from planner.positioning.error_terms import DEFAULT_TERMS, ErrorTerms
 from planner.positioning.fix import (
     BAD_PX,
     Fix,
@@ -32,7 +37,12 @@ from planner.positioning.fix import (
     rms,
 )
 from planner.positioning.paper import distance_weak_perspective, trilaterate_least_squares, trilaterate_same_height
+from planner.positioning.uncertainty import residual_sigmas
 from planner.positioning.undistort import ideal_ellipses
+
+ROBUST_SIGMAS = 3.0
+"""Whitened residual beyond which the weighted fit's soft-L1 loss turns linear: an ellipse off by more than
+three standard deviations pulls the position less than its square would."""
 
 
 def p3p_poses(xyz3: np.ndarray, centres3_px: np.ndarray, camera: Camera) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -77,28 +87,40 @@ def initial_poses(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], a
 
 
 def refine(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
-           centres: np.ndarray, shapes: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
-    """Levenberg-Marquardt over the six pose parameters on :func:`ellipse_residuals`.
+           centres: np.ndarray, shapes: np.ndarray, camera: Camera, sigmas: np.ndarray | None = None,
+           robust: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least squares over the six pose parameters on :func:`ellipse_residuals`, each divided by its
+    standard deviation ``sigmas`` [px] (:func:`planner.positioning.uncertainty.residual_sigmas`; None:
+    all 1 px): Levenberg-Marquardt, or with ``robust`` a trust region on the soft-L1 loss scaled at
+    :data:`ROBUST_SIGMAS`.
+    Returns the position, rotation and the RMS of the unweighted residuals [px].
 
     The Jacobian is taken by forward differences in one batched evaluation.
     """
     args = (rotation, xyz, radii, centres, shapes, camera)
+    w = 1.0 if sigmas is None else 1.0 / sigmas
     steps = np.diag(np.r_[np.full(3, 1e-7), np.full(3, 1e-7 * max(1.0, float(np.abs(position).max())))])
 
     def fun(x):
-        return residuals_batch(x[None], *args)[0]
+        return residuals_batch(x[None], *args)[0] * w
 
     def jac(x):
-        r = residuals_batch(np.vstack([x, x + steps]), *args)
+        r = residuals_batch(np.vstack([x, x + steps]), *args) * w
         return ((r[1:] - r[0]) / np.diag(steps)[:, None]).T
 
-    fit = least_squares(fun, np.concatenate([np.zeros(3), position]), jac=jac, method="lm", x_scale="jac")
+    start = np.concatenate([np.zeros(3), position])
+    if robust:
+        fit = least_squares(fun, start, jac=jac, x_scale="jac", loss="soft_l1", f_scale=ROBUST_SIGMAS)
+    else:
+        fit = least_squares(fun, start, jac=jac, x_scale="jac", method="lm")
     rot = rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
-    return fit.x[3:], rot, rms(fit.fun)
+    return fit.x[3:], rot, rms(fit.fun / w)
 
 
-def locate_perspective(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], camera: Camera) -> Fix:
-    """Camera pose from three or more identified LEDs (``xyz`` N x 3 [m], ``radii`` [m]) and their ellipses."""
+def locate_perspective(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellipse], camera: Camera,
+                       terms: ErrorTerms = DEFAULT_TERMS) -> Fix:
+    """Camera pose from three or more identified LEDs (``xyz`` N x 3 [m], ``radii`` [m]) and their ellipses,
+    weighed by ``terms`` (the error budget the site is believed to have: the model, not its draws)."""
     xyz, radii = np.asarray(xyz, float), np.asarray(radii, float)
     ellipses, camera = ideal_ellipses(ellipses, camera)  # a distorting lens: undistorted first
     check_geometry(xyz)
@@ -111,4 +133,6 @@ def locate_perspective(xyz: np.ndarray, radii: np.ndarray, ellipses: list[Ellips
     if best is None or best[2] >= BAD_PX:
         raise PositioningError("no camera pose below the luminaires explains the LED images")
     position, rotation, r = refine(best[0], best[1], xyz, radii, centres, shapes, camera)
+    sigmas = residual_sigmas(centres, shapes, radii, camera, terms)
+    position, rotation, _ = refine(position, rotation, xyz, radii, centres, shapes, camera, sigmas, robust=True)
     return Fix(position, rotation, r, "perspective", np.arange(len(xyz)))

@@ -294,4 +294,6 @@ def test_a_photo_through_a_distorted_wide_lens_locates_and_ignoring_the_lens_err
         if name == "lens":
             blobs = [b for b in out["photo"]["blobs"] if b["id"] is not None]
             assert sorted(b["luminaire"] for b in blobs) == sorted(_seen(plan, pose))
-    assert errors["lens"] < 0.01 and errors["ignored"] > 10 * errors["lens"], errors  # measured 0.7 mm and 56 mm
+    # measured 2026-12-04: 7.5 mm and 72 mm; the fix weighs the ellipses by the plan's error budget and so discounts the
+    # centres, which this photo (luminaires as drawn, a still phone) gets exact (issue 37; weighing alike: 0.7 and 56 mm)
+    assert errors["lens"] < 0.01 and errors["ignored"] > 5 * errors["lens"], errors

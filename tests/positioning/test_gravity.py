@@ -53,7 +53,8 @@ def test_gravity_fix_with_one_degree_accelerometer_noise_is_within_centimetres()
         errors.append(np.linalg.norm(fix.position - position))
     errors = np.array(errors)
     assert len(errors) >= 40
-    # measured 2026-12-03: median 0.9 cm, 90 % 2.3 cm, max 2.9 cm over 60 poses
+    # measured 2026-12-04 (ellipses weighed for the default budget, issue 37): median 1.0 cm, 90 % 1.8 cm, max 4.0 cm
+    # over 58 poses (weighed by one pixel, 2026-12-03: 0.9 / 2.3 / 2.9 cm)
     assert np.median(errors) < 0.02 and np.percentile(errors, 90) < 0.04 and errors.max() < 0.06
 
 

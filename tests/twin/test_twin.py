@@ -135,7 +135,9 @@ def test_300_covered_poses_decode_and_locate(plan512):
     assert (s["located"], s["leds_in_view"], s["blobs_found"], s["ids_read"], s["ids_misread"]) == (300, 2134, 2134,
                                                                                                      2134, 0)
     assert s["failed_by_stage"] == {"blobs": 0, "ids": 0, "identify": 0, "position": 0}
-    assert s["error_m"]["median"] < 2e-4
+    # measured 2026-12-04: median 0.28 mm, 90 % 0.64 mm, max 1.77 mm; the fit weighs the ellipses by the plan's error
+    # budget, discounting centres the twin renders exactly (issue 37; weighing every residual alike: 0.08 mm)
+    assert s["error_m"]["median"] < 5e-4
 
 
 @pytest.mark.slow
