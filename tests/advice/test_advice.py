@@ -106,7 +106,7 @@ def test_readme_grid_512_is_usable(plan512_dir):
 
 def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     run = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
-                          "--no-map"], capture_output=True, text=True)
+                          "--no-map", "--error-poses-per-m2", "0"], capture_output=True, text=True)
     assert run.returncode == 3
     lines = run.stdout.splitlines()
     verdict = next(line for line in lines if line.startswith("  verdict"))
@@ -119,14 +119,14 @@ def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     table = lines[lines.index(next(line for line in lines if line.startswith("  advice"))) + 1:]
     assert table[0].split()[:3] == ["as", "planned", "(this"]
     again = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
-                            "--no-map", "--allow-unusable"], capture_output=True, text=True)
+                            "--no-map", "--error-poses-per-m2", "0", "--allow-unusable"], capture_output=True, text=True)
     assert again.returncode == 0 and "NOT USABLE" in again.stderr
 
 
 def test_site_report_shows_the_advice_and_no_classes_under_the_window_scheme(tmp_path):
     out = tmp_path / "rig"
-    run = subprocess.run(["vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(out), "--no-map"],
-                         capture_output=True, text=True)
+    run = subprocess.run(["vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(out), "--no-map",
+                          "--error-poses-per-m2", "0"], capture_output=True, text=True)
     assert run.returncode == 3
     html = (out / "site-report.html").read_text()
     section = html[html.index('<h2 id="advice">'):html.index("<h2", html.index('<h2 id="advice">') + 1)]
