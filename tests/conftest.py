@@ -1,8 +1,14 @@
 """Shared test helpers: synthetic layouts, the bundled 512 grid planned once per run, and the
 ``slow`` marker (``pytest -m "not slow"`` is the fast subset: see the README)."""
 
+import hashlib
+import json
 import math
 import os
+import subprocess
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,25 +28,55 @@ def pytest_collection_modifyitems(items):
             item.add_marker(pytest.mark.slow)
 
 
-def _shared_plan(tmp_path_factory, name: str, leds: int | None, *extra: str, stem: str = "") -> Path:
-    """``layouts/<name>`` planned with default options (firmware and report, no maps, no error map), once
-    for the whole run: the first xdist worker to ask plans it, the others wait on a lock and read it."""
+@contextmanager
+def _shared_folder(tmp_path_factory, name: str) -> Iterator[Path]:
+    """``shared-plans/<name>`` of this run, held under a lock: the first xdist worker to ask fills it, the
+    others wait and read it."""
     import fcntl
-
-    from planner.cli.plan import main as plan_main
 
     base = tmp_path_factory.getbasetemp()
     # Under xdist each worker's basetemp sits in the run's own directory; without xdist the parent
     # is shared by every run on the machine (and every checkout), so the plan would go stale.
     root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    out = root / "shared-plans" / (stem or Path(name).stem)
-    out.parent.mkdir(exist_ok=True)
-    with open(root / "shared-plans" / f"{out.name}.lock", "w") as lock:
+    (root / "shared-plans").mkdir(exist_ok=True)
+    with open(root / "shared-plans" / f"{name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
+        yield root / "shared-plans" / name
+
+
+def _shared_plan(tmp_path_factory, name: str, leds: int | None, *extra: str, stem: str = "") -> Path:
+    """``layouts/<name>`` planned with default options (firmware and report, no maps, no error map), once
+    for the whole run: the first xdist worker to ask plans it, the others wait on a lock and read it."""
+    from planner.cli.plan import main as plan_main
+
+    with _shared_folder(tmp_path_factory, stem or Path(name).stem) as out:
         if not (out / "plan.yaml").is_file():
             plan_main([str(ROOT / "layouts" / name), *(["--leds", str(leds)] if leds else []), "-o", str(out),
                        "--no-map", "--json", "--error-poses-per-m2", "0", *extra])
     return out
+
+
+@dataclass(frozen=True)
+class PlanRun:
+    """One run of the installed ``vlp-plan``: exit code, stdout, stderr and its output folder (read it only)."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+    outdir: Path
+
+
+def shared_vlp_plan(tmp_path_factory, *args: str) -> PlanRun:
+    """The installed ``vlp-plan args -o <folder>`` run once for the whole run (from the checkout's root, so
+    ``layouts/...`` names the bundled layouts): tests in several files asking the same ``args`` share it."""
+    key = hashlib.sha256("\0".join(args).encode()).hexdigest()[:16]
+    with _shared_folder(tmp_path_factory, f"run-{key}") as out:
+        record = out.with_name(f"{out.name}.json")
+        if not record.is_file():
+            done = subprocess.run(["vlp-plan", *args, "-o", str(out)], capture_output=True, text=True, cwd=ROOT)
+            record.write_text(json.dumps([done.returncode, done.stdout, done.stderr]))
+        code, stdout, stderr = json.loads(record.read_text())
+    return PlanRun(code, stdout, stderr, out)
 
 
 @pytest.fixture(scope="session")

@@ -9,15 +9,17 @@ import subprocess
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, shared_vlp_plan
 
 LAYOUTS = ROOT / "layouts"
 
 
+FAST = ("--json", "--no-report", "--no-map", "--error-poses-per-m2", "0")
+
+
 def _plan(args: list[str], cwd) -> tuple[int, dict, str]:
     """Run the installed vlp-plan with ``--json``: exit code, JSON summary, stderr."""
-    run = subprocess.run(["vlp-plan", *args, "--json", "--no-report", "--no-map", "--error-poses-per-m2", "0"],
-                         capture_output=True, text=True, cwd=cwd)
+    run = subprocess.run(["vlp-plan", *args, *FAST], capture_output=True, text=True, cwd=cwd)
     assert "Traceback" not in run.stderr, run.stderr
     return run.returncode, json.loads(run.stdout), run.stderr
 
@@ -81,10 +83,13 @@ def _readme_commands() -> list[list[str]]:
 
 @pytest.mark.parametrize("args", [a for a in _readme_commands() if "layouts/grid-512.yaml" not in a],
                          ids=lambda a: " ".join(a))
-def test_readme_command_is_usable_or_says_it_is_not(args, tmp_path):
-    if "-o" in args:  # write into the test's directory instead
+def test_readme_command_is_usable_or_says_it_is_not(args, tmp_path_factory):
+    if "-o" in args:  # write into a shared folder instead
         args = args[:args.index("-o")] + args[args.index("-o") + 2:]
-    code, summary, err = _plan([*args, "-o", str(tmp_path / "out")], ROOT)
+    # run once per test run: tests/twin/test_gravity_office.py reads the office command's plan
+    run = shared_vlp_plan(tmp_path_factory, *args, *FAST)
+    assert "Traceback" not in run.stderr, run.stderr
+    code, summary, err = run.returncode, json.loads(run.stdout), run.stderr
     advice = summary["advice"]
     if advice["usable"]:
         assert code == 0
@@ -101,7 +106,7 @@ def test_readme_grid_512_is_usable(plan512_dir):
 
 def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     run = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
-                          "--no-map"], capture_output=True, text=True)
+                          "--no-map", "--error-poses-per-m2", "0"], capture_output=True, text=True)
     assert run.returncode == 3
     lines = run.stdout.splitlines()
     verdict = next(line for line in lines if line.startswith("  verdict"))
@@ -114,7 +119,7 @@ def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     table = lines[lines.index(next(line for line in lines if line.startswith("  advice"))) + 1:]
     assert table[0].split()[:3] == ["as", "planned", "(this"]
     again = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
-                            "--no-map", "--allow-unusable"], capture_output=True, text=True)
+                            "--no-map", "--error-poses-per-m2", "0", "--allow-unusable"], capture_output=True, text=True)
     assert again.returncode == 0 and "NOT USABLE" in again.stderr
 
 

@@ -83,7 +83,7 @@ def test_without_verification_the_default_is_the_papers_receiver_and_no_window_i
     assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
     assert "no sampled camera pose sees three whole, non-collinear LEDs" in done.stderr
     assert not (tmp_path / "house-vlp").exists()
-    plan = _run([str(ROOT / "layouts" / "grid-32.yaml"), "--no-verify", "--scheme", "paper", "-o", "g", "--json"],
-                tmp_path)
+    plan = _run([str(ROOT / "layouts" / "grid-32.yaml"), "--no-verify", "--scheme", "paper", "-o", "g", "--json",
+                 "--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0"], tmp_path)
     assert plan.returncode == 0, plan.stderr
     assert json.loads(plan.stdout)["receiver"] == {"mode": "three"}

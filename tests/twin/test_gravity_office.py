@@ -13,17 +13,18 @@ import subprocess
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import shared_vlp_plan
 
 POSES = 300
 
 
 @pytest.mark.slow
-def test_office_with_a_listed_fisheye_phone_is_proved_and_the_twin_locates_it(tmp_path):
-    out = tmp_path / "office"
-    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "dialux-office.dxf"), "--receiver", "gravity",
-                           "--camera", "ultrawide-fisheye", "--driver-max-hz", "50000", "-o", str(out), "--json",
-                           "--no-report", "--no-map", "--error-poses-per-m2", "0"], capture_output=True, text=True)
+def test_office_with_a_listed_fisheye_phone_is_proved_and_the_twin_locates_it(tmp_path_factory):
+    # the README's command, planned once per run (tests/advice/test_advice.py checks it too)
+    done = shared_vlp_plan(tmp_path_factory, "layouts/dialux-office.dxf", "--camera", "ultrawide-fisheye",
+                           "--receiver", "gravity", "--driver-max-hz", "50000",
+                           "--json", "--no-report", "--no-map", "--error-poses-per-m2", "0")
+    out = done.outdir
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     v, code = summary["verification"], yaml.safe_load((out / "plan.yaml").read_text())["code"]
