@@ -23,8 +23,10 @@ from pathlib import Path
 
 import ezdxf
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parent.parent
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]  # the package, and the drawings the tests build
 
+from dxf_factory import nested_blocks  # noqa: E402
 from planner.layout.dxf_load import MAX_DXF_ENTITIES  # noqa: E402
 
 FAST = ["--scheme", "unique", "--no-verify", "--no-report", "--no-map", "--no-firmware"]
@@ -32,16 +34,7 @@ FAST = ["--scheme", "unique", "--no-verify", "--no-report", "--no-map", "--no-fi
 
 def nested(path: Path, levels: int, _kind: str = "nested") -> Path:
     """Blocks nesting blocks, ten references a level, around one luminaire circle: ``10**levels`` luminaires."""
-    doc = ezdxf.new("R2010")
-    doc.header["$INSUNITS"] = 4
-    doc.blocks.new("B0").add_circle((0, 0), 100, dxfattribs={"layer": "LIGHTS"})
-    for level in range(1, levels + 1):
-        block = doc.blocks.new(f"B{level}")
-        for k in range(10):
-            block.add_blockref(f"B{level - 1}", (k * 2400 * 10 ** (level - 1), 0))
-    doc.modelspace().add_blockref(f"B{levels}", (0, 0))
-    doc.saveas(path)
-    return path
+    return nested_blocks(path, "circle", levels)
 
 
 def drawing(path: Path, extra: int, kind: str, insunits: int = 4) -> Path:

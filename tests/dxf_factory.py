@@ -272,6 +272,25 @@ def office_48(spacing_mm: float = 2400.0):
     return doc, np.array(sorted(centres, key=lambda p: (p[1], p[0])))
 
 
+def nested_blocks(path: str | Path, inner: str = "circle", levels: int = 4) -> Path:
+    """Blocks nesting blocks, ten references a level: ``10**levels`` copies of one ``inner`` entity (a luminaire
+    CIRCLE or a LINE) from one reference in the model space."""
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 4
+    b = doc.blocks.new("B0")
+    if inner == "circle":
+        b.add_circle((0, 0), 100, dxfattribs={"layer": "LIGHTS"})
+    else:
+        b.add_line((0, 0), (100, 0))
+    for level in range(1, levels + 1):
+        blk = doc.blocks.new(f"B{level}")
+        for k in range(10):
+            blk.add_blockref(f"B{level - 1}", (k * 2400 * 10 ** (level - 1), 0))
+    doc.modelspace().add_blockref(f"B{levels}", (0, 0))
+    doc.saveas(path)
+    return path
+
+
 def converted_panels(cols: int = 5, rows: int = 4, spacing_mm: float = 2400.0, offset_mm: float = 120.0
                      ) -> tuple[Drawing, np.ndarray]:
     """A DWG converted to DXF: ``$INSUNITS`` = metres over millimetre geometry, circle-less symbols.

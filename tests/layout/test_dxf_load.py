@@ -5,6 +5,7 @@ from __future__ import annotations
 import ezdxf
 import pytest
 
+import dxf_factory as factory
 import planner.layout.dxf_load as dxf_load
 from planner.errors import InputError
 from planner.layout.dxf import load_drawing, read_dxf, scan_dxf
@@ -110,24 +111,6 @@ def test_r12_and_binary_drawings_are_skimmed_alike(version, fmt, tmp_path):
     assert len(layout.luminaires) == 16 and layout.unit == "mm" and len(layout.outline) == 4
 
 
-def _nested(path, inner: str, levels: int = 4):
-    """Blocks nesting blocks, ten references a level: ``10**levels`` copies of one ``inner`` entity (a luminaire
-    CIRCLE or a LINE) from one reference in the model space."""
-    doc = ezdxf.new("R2010")
-    b = doc.blocks.new("B0")
-    if inner == "circle":
-        b.add_circle((0, 0), 100, dxfattribs={"layer": "LIGHTS"})
-    else:
-        b.add_line((0, 0), (100, 0))
-    for level in range(1, levels + 1):
-        blk = doc.blocks.new(f"B{level}")
-        for k in range(10):
-            blk.add_blockref(f"B{level - 1}", (k * 2400 * 10 ** (level - 1), 0))
-    doc.modelspace().add_blockref(f"B{levels}", (0, 0))
-    doc.saveas(path)
-    return path
-
-
 def test_blocks_nesting_blocks_are_walked_within_a_bound(tmp_path, monkeypatch):
     """A 'billion laughs' of blocks: the walk stops at its caps (lowered here; 400,000 parts and 2,000,000 visits
     by default, docs/dxf.md) with one line, instead of running for hours."""
@@ -135,10 +118,10 @@ def test_blocks_nesting_blocks_are_walked_within_a_bound(tmp_path, monkeypatch):
 
     monkeypatch.setattr(dxf_scan, "MAX_PARTS", 1_000)
     with pytest.raises(InputError, match=r"more than 1,000 luminaire parts taken .*--layer or --block"):
-        read_dxf(_nested(tmp_path / "parts.dxf", "circle"))
+        read_dxf(factory.nested_blocks(tmp_path / "parts.dxf", "circle"))
     monkeypatch.setattr(dxf_scan, "MAX_VISITS", 5_000)
     with pytest.raises(InputError, match=r"hold more than 5,000 entities \(blocks nested in blocks multiply: B4"):
-        read_dxf(_nested(tmp_path / "lines.dxf", "line"))
+        read_dxf(factory.nested_blocks(tmp_path / "lines.dxf", "line"))
     monkeypatch.setattr(dxf_scan, "MAX_VISITS", 30_000)  # the same drawing within the caps is walked whole
-    found, _, _ = scan_dxf(_nested(tmp_path / "lines.dxf", "line"))
+    found, _, _ = scan_dxf(factory.nested_blocks(tmp_path / "lines.dxf", "line"))
     assert found.visits == 1 + 10 + 100 + 1_000 + 10_000 + 10_000  # the references of each level, then the lines
