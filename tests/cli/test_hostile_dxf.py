@@ -2,7 +2,7 @@
 past; more luminaire candidates than the loader's cap are refused with one line before
 ezdxf builds anything; a dense drawing read in the wrong unit is refused with one line, not out of memory.
 
-Each command runs in a child process; its own peak memory (``ru_maxrss`` from ``os.wait4``) is bounded.
+Each command runs in a child process; its own peak memory (``ru_maxrss`` from ``os.wait4``, in a fresh launcher) is bounded.
 Times are not asserted here (benchmarks/dxf_bench.py and docs/performance.md keep them).
 """
 
@@ -23,14 +23,29 @@ MEMORY_BOUND_KB = 1536 * 1024
 FAST = ["--scheme", "unique", "--no-verify", "--no-report", "--no-map", "--no-firmware"]
 
 
+_LAUNCH = """
+import os, sys
+pid = os.fork()
+if pid == 0:
+    os.execv(sys.argv[2], sys.argv[2:])
+_, status, usage = os.wait4(pid, 0)
+open(sys.argv[1], "w").write(str(usage.ru_maxrss))
+code = os.waitstatus_to_exitcode(status)
+os._exit(code if code >= 0 else 128 - code)
+"""
+"""Runs the command from a fresh, small interpreter: Linux keeps a process's peak memory across ``exec``, so a
+child spawned straight from a pytest worker that planned a big site reports the worker's peak, not its own."""
+
+
 def _run(command: str, argv: list[str], folder: Path) -> tuple[int, str, str, int]:
-    """Run an installed console script; returns exit code, stdout, stderr and its peak memory [KB]."""
-    out, err = folder / f"{command}.out", folder / f"{command}.err"
+    """Run an installed console script; returns exit code, stdout, stderr and its own peak memory [KB]."""
+    out, err, rss = folder / f"{command}.out", folder / f"{command}.err", folder / f"{command}.rss"
     with open(out, "w") as fo, open(err, "w") as fe:
-        pid = os.posix_spawn(str(Path(sys.executable).parent / command), [command, *argv], os.environ,
+        pid = os.posix_spawn(sys.executable, [sys.executable, "-c", _LAUNCH, str(rss),
+                                              str(Path(sys.executable).parent / command), *argv], os.environ,
                              file_actions=[(os.POSIX_SPAWN_DUP2, fo.fileno(), 1), (os.POSIX_SPAWN_DUP2, fe.fileno(), 2)])
-        _, status, usage = os.wait4(pid, 0)
-    return os.waitstatus_to_exitcode(status), out.read_text(), err.read_text(), usage.ru_maxrss
+        _, status, _ = os.wait4(pid, 0)
+    return os.waitstatus_to_exitcode(status), out.read_text(), err.read_text(), int(rss.read_text())
 
 
 def crowded_dxf(path: Path, extra: int, kind: str) -> Path:

@@ -49,4 +49,6 @@ def test_office_with_a_listed_fisheye_phone_is_proved_and_the_twin_locates_it(tm
                           "--seed", "0", "--json"], capture_output=True, text=True)
     assert one.returncode == 0, one.stderr
     pose = json.loads(one.stdout)
-    assert pose["located"] and pose["error_m"] < 0.01 and pose["ids_read"] == pose["leds_in_view"] >= 5
+    # measured 2026-12-04: 1.03 cm, under 1 cm before the fit weighed each ellipse by its uncertainty under the full
+    # error budget (docs/positioning.md): it now discounts the centres, exact in this ideal render, at 70 deg off axis
+    assert pose["located"] and pose["error_m"] < 0.02 and pose["ids_read"] == pose["leds_in_view"] >= 5
