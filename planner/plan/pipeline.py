@@ -129,7 +129,7 @@ def _frames(assignment: Assignment, check: CheckCode, mode: Receiver, rows: floa
             ) -> tuple[Modulation | None, str | None]:
     """Each luminaire's frame (its ID's codeword), timed for the smallest LED image of a window [rows]; or no
     frames and why, when no sampled pose sees a window (``rows`` None) or no chip rate fits the limits with
-    ``--verify`` on: the plan is still written, with its verdict and advice, and no firmware."""
+    ``verify`` on: the plan is still written, with its verdict and advice, and no firmware."""
     if rows is None:
         why = f"no sampled camera pose sees {mode.window_words}, so there is no LED image to fit a frame into"
         if not options.verify:  # no verdict or advice to write it beside
@@ -138,7 +138,7 @@ def _frames(assignment: Assignment, check: CheckCode, mode: Receiver, rows: floa
     index = assignment.ids - 1
     words = check.codewords[index] if check.distance > 1 else index
     try:
-            return modulate(np.asarray(words), check.word_bits, line_code(options.line_code), rows, options.camera,
+        return modulate(np.asarray(words), check.word_bits, line_code(options.line_code), rows, options.camera,
                         driver_max_hz=options.driver_max_hz, video_fps=options.video_fps,
                         max_video_frames=options.max_video_frames, mcu_clock_hz=options.mcu_clock_hz), None
     except PlanningError as exc:
