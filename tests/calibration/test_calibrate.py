@@ -134,6 +134,48 @@ def test_the_row_time_comes_from_the_stripes_of_a_blinking_led(tmp_path, row_tim
     assert rt["period_rows"] == pytest.approx(1 / (blink_hz * row_time_s), rel=0.005) and rt["edges"] >= 3
 
 
+def _small_led_photo(row_time_s: float, blink_hz: float, seed: int) -> np.ndarray:
+    """A whole 33 MP photo (7,056 x 4,704 px) of a 2.4 mm LED 2.46 m up, the phone 1.2 m above the floor and tilted
+    up to 10 deg: a saturated core of about 10 px in an optical glow. The glow is light the lens spreads before the
+    rolling shutter samples it, so it blinks row by row with the core (issue 37's research rig)."""
+    from planner.twin.render import exposure_means
+
+    camera = Camera.from_fov(math.radians(70), 7056, 4704, row_time_s=row_time_s)
+    rng = np.random.default_rng(seed)
+    position = np.array([*rng.uniform(-0.3, 0.3, 2), 1.2])
+    rotation = rotation_from_angles(math.radians(rng.uniform(0, 10)), rng.uniform(0, 2 * math.pi),
+                                    rng.uniform(0, 2 * math.pi))[0]
+    shape = Sensor(blur_px=0.8, led_dn=250.0, led_spread=0, read_noise_dn=0, shot_dn=0, dark_dn=0)
+    cover = render_frame(np.array([[0.0, 0.0, 2.46]]), np.array([0.0012]), ["1"], 1000.0, camera, position, rotation,
+                         shape, rng).image.astype(np.float32) / 250
+    rows, cols = np.nonzero(cover)
+    v0, v1, u0, u1 = rows.min() - 48, rows.max() + 49, cols.min() - 48, cols.max() + 49
+    patch = cover[v0:v1, u0:u1]
+    glow = cv2.GaussianBlur(patch, (0, 0), 8.0)
+    light = 2500.0 * patch + 60.0 * glow / glow.max()  # the core saturates 10 times over
+    drive = exposure_means("10", rng.uniform(0, 2), np.arange(v0, v1) * row_time_s, 20e-6, 2 * blink_hz, 0.0)
+    image = np.full(cover.shape, 6.0, np.float32)
+    image[v0:v1, u0:u1] += light * drive[:, None].astype(np.float32)
+    image += rng.normal(0, 2.0, image.shape).astype(np.float32)
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_small_led_in_a_whole_photo_gives_the_row_time(tmp_path, seed):
+    """Issue 37's Done-when: the row time within 2 % from a whole rendered photo, where the LED covers under 0.1 % of
+    the frame (the 99.9th percentile is background) and its stripes show mostly in its glow."""
+    image = _small_led_photo(21e-6, 4000.0, seed)
+    assert (image > 30).mean() < 1e-3
+    photo = tmp_path / "whole.png"
+    cv2.imwrite(str(photo), image)
+    done = _run("--row-time", photo, "--blink-hz", "4000", "--json")
+    assert done.returncode == 0, done.stderr
+    rt = json.loads(done.stdout)["row_time"]
+    assert rt["row_time_s"] == pytest.approx(21e-6, rel=0.02)
+    assert rt["edges"] >= 3
+
+
 def test_a_measured_row_time_updates_a_named_camera(tmp_path):
     (tmp_path / "cam.yaml").write_text("width_px: 1600\nheight_px: 1200\nhfov_deg: 66\nname: lab\n")
     photo = tmp_path / "blink.png"
