@@ -119,6 +119,17 @@ def exact_nearest(xyz, radii, cam, poses, count: int) -> np.ndarray:
     return np.sort(order[ok], axis=1)
 
 
+def accepted(windows: np.ndarray, drawn: np.ndarray, installed: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """The rows of ``windows`` (from :func:`exact_nearest` on the ``installed`` site) the three-LED receiver takes:
+    not collinear as drawn in the plan, and no other installed LED's disc over one of their sides."""
+    from planner.verify.windows import MIN_FLATNESS, crossed, flatness
+
+    windows = np.asarray(windows, dtype=np.int64).reshape(-1, 3)
+    if len(windows) == 0:
+        return windows
+    return windows[(flatness(drawn[windows]) >= MIN_FLATNESS) & ~crossed(windows, installed, radii)]
+
+
 def grid_xy(rows: int, cols: int, sx: float = 1.0, sy: float = 1.0, angle_rad: float = 0.0,
             jitter_m: float = 0.0, seed: int = 0) -> np.ndarray:
     """Plan positions of a rows x cols lattice, optionally rotated and jittered [m]."""

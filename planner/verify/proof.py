@@ -27,11 +27,14 @@ angular radius of a disc, at the nearest ceiling distance). Two cases:
 A triple is excluded only when both cases are, so what is left is a superset of
 every window. Installed luminaires lie up to ``d`` from the drawing: an LED counts
 against a triple only when it is deeper than ``2 d`` inside the region, and the
-spindles are taken over every centre within ``R + d`` of both (drawn) ends. Triples
-whose installed shape is certainly flatter than the receiver accepts are dropped
-(:func:`planner.verify.window_set.may_be_decoded`). The ``2 d`` margin is not slack: an
-LED on an edge, moved outwards, can be nearer yet cut by the image's border, and the
-hull is all this proof knows of the view (docs/verification.md measures such a window).
+spindles are taken over every centre within ``R + d`` of both (drawn) ends. The
+``2 d`` margin is not slack for the paper's rule: an LED on an edge, moved outwards, can
+be nearer yet cut by the image's border, and the hull is all this proof knows of the view
+(docs/verification.md measures such a window). The receiver's crossing rule closes it: a
+window with another LED's disc over one of its sides is refused, and an LED within its
+radius less ``2 d`` of a drawn side overlaps the installed side, so such triples are dropped
+before the two cases (:mod:`planner.verify.window_set`), as are triples drawn collinear
+(:func:`planner.verify.window_set.may_be_decoded`).
 Pairs are tested first (an LED may be the unknown third member, so two are needed).
 """
 

@@ -120,7 +120,7 @@ def _window_job(shared: _Shared, job: _Job) -> tuple[np.ndarray, bool]:
     nbrs |= job.owned
     local = local[nbrs[local[:, 0]] & nbrs[local[:, 1]]]
     cand = triples_of_pairs(local, len(xy), first=job.owned)
-    cand = cand[may_be_decoded(xy[cand], shared.env.install_m)]
+    cand = cand[may_be_decoded(xy[cand])]
     cand = cand[empty_triangles(cand, job.xyz, job.radii, shared.env.install_m)]
     over = len(cand) > shared.budget
     if not over and shared.n_site > 3 and len(cand):

@@ -13,6 +13,14 @@ it. With luminaires installed up to ``d`` from the drawing, an edge line moves b
 most ``d`` at its ends and the LED by ``d``, so only LEDs deeper than ``2 d`` inside
 every edge of the drawn triangle are sure to be inside the installed one.
 
+**Crossing rule** (ours, not the paper's; docs/verification.md). The receiver refuses a window
+one of whose sides, the straight segment between two members' centres, another LED's disc
+overlaps (:func:`planner.verify.windows.crossed`). An LED whose drawn centre lies within
+``r - 2 d`` of a drawn side (``r`` its radius) overlaps the installed side, so no such triple is
+a window, whatever the installation: the LEDs on and near an edge that the ``2 d`` margin above
+lets through are caught here. And the receiver judges a window collinear on the plan's (drawn)
+triangle, so a triple drawn flatter than :data:`~planner.verify.windows.MIN_FLATNESS` is no window.
+
 The rule needs every ray in view to meet the ceiling (largest tilt plus corner angle
 under 90 deg; :func:`planner.verify.proof.envelope` checks it) and says nothing about
 long triangles: here the set is bounded by a side length from a dense pose sample, so
@@ -72,7 +80,9 @@ def empty_triangles(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray, ins
 def _holds(triples: np.ndarray, near: np.ndarray, xyz: np.ndarray, radii: np.ndarray,
            install_tolerance_m: float) -> np.ndarray:
     """Whether some LED of ``near`` (T x m candidates per triple) forbids each triple: another LED of the
-    same ceiling and no larger disc, deeper than ``2 d`` inside every edge of the drawn triangle."""
+    same ceiling and no larger disc, deeper than ``2 d`` inside every edge of the drawn triangle, or any other
+    LED of the same ceiling whose centre lies within its radius less ``2 d`` of a drawn side (it crosses that
+    side however the luminaires are installed)."""
     xy = xyz[:, :2]
     p = xy[triples]  # (T, 3, 2)
     q = xy[near]  # (T, m, 2)
@@ -86,29 +96,35 @@ def _holds(triples: np.ndarray, near: np.ndarray, xyz: np.ndarray, radii: np.nda
         dist = orient * (edge[:, None, 0] * (q[..., 1] - a[:, None, 1]) - edge[:, None, 1] * (q[..., 0] - a[:, None, 0]))
         inside &= dist >= margin * np.maximum(length, 1e-12)
     member = (near[:, :, None] == triples[:, None, :]).any(axis=2)
+    crossing = np.zeros(near.shape, dtype=bool)
+    for s in range(3):
+        crossing |= segment_distance(p[:, s], p[:, (s + 1) % 3], q) + margin < radii[near]
     coplanar = (np.abs(xyz[near, 2] - xyz[triples, 2].min(axis=1)[:, None]) < SAME_HEIGHT_M) \
         & (np.ptp(xyz[triples, 2], axis=1) < SAME_HEIGHT_M)[:, None]
     small = radii[near] <= radii[triples].min(axis=1)[:, None]
-    return (inside & ~member & coplanar & small).any(axis=1)
+    return (((inside & small) | crossing) & ~member & coplanar).any(axis=1)
 
 
-def may_be_decoded(p: np.ndarray, install_tolerance_m: float) -> np.ndarray:
-    """Triangles ``p`` (T, 3, 2) [m] whose installed shape may reach the receiver's flatness limit.
+def segment_distance(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Distance [m] from points ``x`` (T, m, 2) to the segments ``a b`` (T, 2) in plan."""
+    ab = b - a
+    length2 = np.maximum(np.sum(ab * ab, axis=1), 1e-24)[:, None]
+    t = np.clip(np.einsum("tmk,tk->tm", x - a[:, None], ab) / length2, 0.0, 1.0)
+    return np.linalg.norm(x - (a[:, None] + t[..., None] * ab[:, None]), axis=2)
 
-    Each corner moves at most ``d``: twice the area grows by at most ``4 d L + 4 d^2`` and
-    the longest side ``L`` shrinks by at most ``2 d``; a triangle below :data:`MIN_FLATNESS`
-    even then is never decoded (the receiver calls it collinear) and cannot be a window.
-    """
-    d = install_tolerance_m
+
+def may_be_decoded(p: np.ndarray) -> np.ndarray:
+    """Triangles ``p`` (T, 3, 2) [m], as drawn, that the receiver does not call collinear (flatness at least
+    :data:`MIN_FLATNESS`): it judges the plan's triangle of the luminaires it read, not their installed shape,
+    so the install tolerance does not blur this line (docs/verification.md)."""
     e = p[:, [1, 2, 0]] - p
     longest = np.linalg.norm(e, axis=2).max(axis=1)
-    twice_area = np.abs(twice_signed_area(p))
-    return (twice_area + 4 * d * longest + 4 * d * d) / np.maximum(longest - 2 * d, 1e-12) ** 2 >= MIN_FLATNESS
+    return np.abs(twice_signed_area(p)) >= MIN_FLATNESS * np.maximum(longest, 1e-12) ** 2
 
 
 def window_superset(xyz: np.ndarray, radii: np.ndarray, max_side_m: float, install_tolerance_m: float) -> np.ndarray:
-    """Every triple with sides at most ``max_side_m`` that the empty-triangle rule allows (T x 3),
-    less those whose installed shape is certainly too flat to decode."""
+    """Every triple with sides at most ``max_side_m`` that the empty-triangle and crossing rules allow (T x 3),
+    less those drawn too flat to decode."""
     cand = site_triples(xyz[:, :2], max_side_m)
     cand = cand[empty_triangles(cand, xyz, radii, install_tolerance_m)]
-    return cand[may_be_decoded(xyz[cand][:, :, :2], install_tolerance_m)]
+    return cand[may_be_decoded(xyz[cand][:, :, :2])]

@@ -1,7 +1,9 @@
 """Windows: the three LEDs a camera uses at a pose, for many poses at once.
 
 A window is, by the paper's rule (section 3), the three LEDs wholly inside the
-image that are closest to its centre. This module samples poses over a working
+image that are closest to its centre. Two refusals are ours (docs/verification.md): a window
+is no fix when its triangle, as drawn in the plan, is (nearly) collinear, or when another
+LED's disc overlaps one of its sides (:func:`crossed`). This module samples poses over a working
 area, finds each pose's window (vectorised over poses), and canonicalises the
 windows found: counter-clockwise order and a congruence class of their triangle,
 as the receiver sees them (it reads IDs in cyclic order and measures the
@@ -89,7 +91,8 @@ class PoseWindows:
     seen : numpy.ndarray of int, shape (P,)
         LEDs wholly inside the image, among those examined (at most ``CANDIDATES``).
     collinear : numpy.ndarray of bool, shape (P,)
-        The window's three LEDs are (nearly) on one line: no fix.
+        No fix from the window: its three LEDs are (nearly) on one line, or another LED's
+        disc overlaps one of its sides (:func:`crossed`).
     """
 
     triples: np.ndarray
@@ -181,12 +184,46 @@ def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
 
 
 def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
-    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre (:func:`nearest_seen`)."""
+    """The paper's window at every pose: the 3 fully seen LEDs nearest the image centre (:func:`nearest_seen`);
+    collinear (drawn) and crossed windows give no fix."""
     triples, seen = nearest_seen(poses, xyz, radii, camera, 3)
     collinear = np.zeros(len(poses), dtype=bool)
     has = triples[:, 0] >= 0
-    collinear[has] = flatness(xyz[triples[has]]) < MIN_FLATNESS
+    if has.any():
+        distinct, back = np.unique(triples[has], axis=0, return_inverse=True)
+        no_fix = (flatness(xyz[distinct]) < MIN_FLATNESS) | crossed(distinct, xyz, radii)
+        collinear[has] = no_fix[back.ravel()]
     return PoseWindows(triples, seen, collinear)
+
+
+def crossed(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Whether another LED's disc overlaps a side of each triangle ``triples`` (T, 3): the straight segment
+    between two members' centres, in plan (T,).
+
+    The receiver refuses such a window. Its sides lie wholly in view (they join centres of whole discs),
+    so an overlapping disc shows where it overlaps, and the image's segment between the two members'
+    centres runs through that LED's blob: the receiver sees it. This is what lets the proof count LEDs
+    on and near a triangle's edge at any install tolerance, which the paper's rule alone does not
+    (docs/verification.md, "The crossing rule")."""
+    xy = xyz[:, :2]
+    out = np.zeros(len(triples), dtype=bool)
+    if len(triples) == 0 or len(xy) <= 3:
+        return out
+    tree = cKDTree(xy)
+    big = float(np.max(radii))
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        a, b = xy[triples[:, i]], xy[triples[:, j]]
+        half = 0.5 * np.linalg.norm(b - a, axis=1)
+        for t, near in enumerate(tree.query_ball_point(0.5 * (a + b), half + big)):
+            near = np.array([k for k in near if k not in triples[t]
+                             and abs(xyz[k, 2] - xyz[triples[t, i], 2]) < 1e-3], dtype=np.int64)  # one ceiling
+            if len(near) == 0 or out[t]:
+                continue
+            ab = b[t] - a[t]
+            u = np.clip((xy[near] - a[t]) @ ab / max(float(ab @ ab), 1e-24), 0.0, 1.0)
+            gap = np.linalg.norm(xy[near] - (a[t] + u[:, None] * ab), axis=1)
+            out[t] = bool(np.any(gap < radii[near]))
+    return out
 
 
 @dataclass(frozen=True)

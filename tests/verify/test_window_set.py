@@ -5,7 +5,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, grid_xy, hex_xy, jittered_xy, poisson_xy
+from conftest import ROOT, accepted, grid_xy, hex_xy, jittered_xy, poisson_xy
 from planner.camera.model import Camera
 from planner.layout.model import Layout, Luminaire, area_m2
 from planner.layout.read import read_layout
@@ -37,8 +37,8 @@ def test_every_sampled_window_of_the_installed_site_passes_the_rule_on_the_drawi
     envelope(cam, drawn, radii, install)  # the rule's conditions hold (it raises otherwise)
     poses = sample_poses(working_area(xy, None), cam, 3000.0, seed)
     pw = find_windows(poses, installed, radii, cam)
-    windows = np.unique(pw.triples[pw.triples[:, 0] >= 0], axis=0)
-    assert len(windows)
+    windows = accepted(np.unique(pw.triples[pw.triples[:, 0] >= 0], axis=0), drawn, installed, radii)
+    assert len(windows)  # the receiver's windows: no LED over a side (the crossing rule), not collinear as drawn
     assert empty_triangles(windows, drawn, radii, install).all()
 
 
@@ -95,7 +95,7 @@ def test_the_jittered_site_of_issue_13_is_proved_and_unambiguous_on_fresh_dense_
     layout = Layout(tuple(Luminaire(f"J{k:03d}", float(x), float(y), 2.5) for k, (x, y) in enumerate(xy)))
     plan = make_plan(layout, PlanOptions(error_poses_per_m2=0))
     w = plan.verification.window_set
-    assert w.proved and w.complete and w.triangles > 50_000, w.reason
+    assert w.proved and w.complete and w.triangles > 10_000, w.reason  # 18,211 since the crossing rule (71,752)
     assert plan.assignment.scheme == "window" and plan.assignment.bits <= 6
     xyz, radii = layout.xyz, np.full(len(xy), 0.1)
     for fresh in range(5):
