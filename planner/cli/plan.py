@@ -140,9 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.layout:
         parser.error("the following arguments are required: LAYOUT")
     from planner.layout.read import read_layout
-    from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
     from planner.plan.timings import Timings
-    from planner.receivers.modes import PAPER
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
@@ -162,6 +160,10 @@ def main(argv: list[str] | None = None) -> int:
     work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
+    # The stages (ortools, networkx, scipy, cv2, matplotlib) load only now: every refusal above is quick.
+    from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
+    from planner.receivers.modes import PAPER
+
     with tiles:
         plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=args.seed,
                                              camera=camera, verify=not args.no_verify, poses_per_m2=args.poses_per_m2,

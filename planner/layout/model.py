@@ -13,8 +13,6 @@ from dataclasses import dataclass, field, replace
 from typing import cast
 
 import numpy as np
-from matplotlib.path import Path as _PolygonPath
-from scipy.spatial import cKDTree
 
 from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, MAX_LUMINAIRES, MAX_RADIUS_M, MIN_RADIUS_M
 from planner.errors import InputError
@@ -171,6 +169,8 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
         if not np.isfinite(corners).all() or np.abs(corners).max(initial=0.0) > MAX_EXTENT_M:
             raise InputError(f"{where}: the room outline has a corner that is not a number or beyond "
                              f"{MAX_EXTENT_M:g} m; fix the outline's coordinates or its units (`units`)")
+    from scipy.spatial import cKDTree  # here, not at import: reading a file and refusing it needs no scipy
+
     tree = cKDTree(xy)
     # many points and k=2: arrays (the stubs' return type also allows one point's scalars)
     dist, idx = cast("tuple[np.ndarray, np.ndarray]", tree.query(xy, k=2))
@@ -236,7 +236,9 @@ def fill_outline(
     if count * (2 * radius_m) ** 2 > room_m2:  # even a perfect packing could not keep the discs apart
         raise InputError(f"`leds` {count}: {count:,} luminaires of radius {radius_m:g} m do not fit in the "
                          f"room's {room_m2:.1f} m2; ask for fewer (at most {int(room_m2 / (2 * radius_m) ** 2):,})")
-    polygon = _PolygonPath(local)
+    from matplotlib.path import Path as PolygonPath
+
+    polygon = PolygonPath(local)
     best = None
     for cols in range(1, count + 1):
         sx = width / cols
