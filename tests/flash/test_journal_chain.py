@@ -170,6 +170,12 @@ def test_the_head_covers_every_entry_in_order_and_the_plan_generation(tmp_path):
     assert doc["plan_sealed"] == EARLY and doc["head"]["entries"] == [
         [n, doc["luminaires"][n]["seal"]] for n in NAMES]
     assert Journal(path, digest, KEY, EARLY).entries == Journal(path, digest).entries  # checked = unchecked
+    damaged_heads = ({"head": []}, {"head": {**doc["head"], "entries": [["R01C01"]]}}, {"plan_sealed": 7},
+                     {"head": {**doc["head"], "hmac_sha256": None}}, {"head": {"entries": {}, "hmac_sha256": "0"}})
+    for edit in damaged_heads:
+        path.write_text(json.dumps({**doc, **edit}))
+        with pytest.raises(InputError, match="journal head missing or not checking"):
+            Journal(path, digest, KEY, EARLY)
     for edit in ({"plan_sealed": "2025-01-01T00:00:00Z"}, {"plan_hash": "f" * 16}):  # fields the head covers
         path.write_text(json.dumps({**doc, **edit}))
         with pytest.raises(InputError, match="journal head missing or not checking|not of this plan"):
