@@ -211,6 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "no_frames": plan.no_frames,
+        "tones": plan.tones.summary([lum.name for lum in layout.luminaires]) if plan.tones is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
@@ -234,6 +235,10 @@ def main(argv: list[str] | None = None) -> int:
               "the site report", file=sys.stderr)
     if plan.no_frames and not unusable:
         print(f"vlp-plan: plan written, but without frames or firmware: {plan.no_frames}; see the advice",
+              file=sys.stderr)
+        return ExitCode.CHECK_FAILED
+    if plan.tones is not None and plan.tones.clashes:  # an existing tone site's clashes (docs/tones.md)
+        print(f"vlp-plan: plan written, but {plan.tones.first_clash([lum.name for lum in layout.luminaires])}",
               file=sys.stderr)
         return ExitCode.CHECK_FAILED
     if v is not None and v.conflicts:
@@ -316,6 +321,10 @@ def _print_summary(s: dict) -> None:
             print("           single-frame: one LED image holds a whole frame")
     elif s["no_frames"]:
         print(f"  frame    none: {s['no_frames']}; no firmware written")
+    if s.get("tones"):
+        from planner.advice.tones import tone_lines
+
+        print("\n".join(tone_lines(s["tones"])))
     a = s["accuracy"]
     if a and a["located"]:
         from planner.positioning.accuracy import method_text
