@@ -41,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
         "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
         ok="done", check_failed="plan written but some sampled pose is ambiguous (only with an explicit --scheme), "
+        "two luminaires of one tone share a window (a tone site: docs/tones.md), "
         "or the plan is NOT USABLE (under 50 % of sampled poses decode; --allow-unusable exits 0)",
         bad_input="or no plan possible", docs="docs/cli.md", json="print a JSON summary on stdout instead of text",
     )
