@@ -109,3 +109,30 @@ def test_refusals_are_one_line(tmp_path, body, args, code, words):
     assert done.returncode == code
     assert done.stderr.count("\n") == 1 and words in done.stderr and "Traceback" not in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_an_edited_tone_plan_is_refused_where_it_breaks_the_rule(clash, tmp_path):
+    from planner.errors import InputError
+    from planner.plan.file import load_plan
+
+    _, _, out = clash
+    plan = yaml.safe_load((out / "plan.yaml").read_text())
+    assert load_plan(out / "plan.yaml").luminaires[0].tone_hz == 1000.0
+    del plan["luminaires"][3]["tone_hz"]
+    (tmp_path / "plan.yaml").write_text(yaml.safe_dump(plan, sort_keys=False))
+    with pytest.raises(InputError, match="31 of 32 luminaires have a tone_hz: all or none must"):
+        load_plan(tmp_path / "plan.yaml")
+    plan["luminaires"][3]["tone_hz"] = 1800.0  # retuned by hand since the verdict (it was 1,750 Hz)
+    (tmp_path / "plan.yaml").write_text(yaml.safe_dump(plan, sort_keys=False))
+    with pytest.raises(InputError, match="the luminaires were edited since the plan was verified"):
+        load_plan(tmp_path / "plan.yaml").check_verdict_current("plan.yaml")
+
+
+def test_a_tone_site_for_the_two_led_receiver(clash, tmp_path):
+    doc, _, _ = clash
+    (tmp_path / "site.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    done = vlp("vlp-plan", str(tmp_path / "site.yaml"), "-o", str(tmp_path / "out"), "--receiver", "gravity", "--json",
+               *FAST)
+    s = json.loads(done.stdout)
+    assert done.returncode == 3 and s["receiver"]["mode"] == "gravity"
+    assert [c["luminaires"] for c in s["tones"]["clashes"]] == [["R2C2", "R2C3"]]
