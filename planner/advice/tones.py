@@ -46,7 +46,8 @@ class ToneAudit:
     poses: int
     clash_poses: int
     clashes: list[ToneClash]
-    retunes: list[Retune | None]
+    retunes: list[Retune | None]  # None: no free tone, or the retunes of earlier clashes settle this one
+    settled: list[bool]  # the retunes of earlier clashes already tell this pair apart
 
     def summary(self, names: list[str]) -> dict:
         low = lowest_readable_hz(self.rows, self.row_time_s)
@@ -72,6 +73,7 @@ class ToneAudit:
                 **({"retune": {"luminaire": names[r.index], "to_hz": r.tone_hz, "apart_from": (
                     "every tone of the site" if r.unique else "the tones it shares a window with")}}
                    if (r := self.retunes[k]) is not None else {}),
+                **({"settled_by_earlier_retunes": True} if self.settled[k] else {}),
             } for k, c in enumerate(self.clashes)],
             "drivers": DRIVERS,
         }
@@ -90,13 +92,22 @@ def audit_tones(tones_hz: np.ndarray, classes: np.ndarray, rows: float, row_time
     clashes = tone_clashes(windows, seen, classes, positions)
     sharers = shared_windows(windows, seen, len(tones_hz))
     low = max(FLICKER_HZ, lowest_readable_hz(rows, row_time_s))
-    retunes = [retune(c.b, tones_hz, sharers[c.b], rows, low, high) for c in clashes]
+    tuned = tones_hz.astype(float).copy()  # the site as the retunes so far leave it: they must not clash either
+    retunes: list[Retune | None] = []
+    settled = []
+    for c in clashes:
+        settled.append(bool(tones_apart(tuned[c.a], tuned[c.b], rows)))
+        r = None if settled[-1] else retune(c.b, tuned, sharers[c.b], rows, low, high)
+        if r is not None:
+            tuned[r.index] = r.tone_hz
+        retunes.append(r)
     hit = np.zeros(len(seen), dtype=bool)
     w = np.asarray(windows, dtype=np.int64).reshape(len(seen), -1)
     for i in range(w.shape[1]):
         for j in range(i + 1, w.shape[1]):
             hit |= seen & (classes[w[:, i]] == classes[w[:, j]])
-    return ToneAudit(tones_hz, classes, rows, row_time_s, high, why, len(seen), int(hit.sum()), clashes, retunes)
+    return ToneAudit(tones_hz, classes, rows, row_time_s, high, why, len(seen), int(hit.sum()), clashes, retunes,
+                     settled)
 
 
 def retune(index: int, tones_hz: np.ndarray, sharers: set[int], rows: float, low_hz: float, high_hz: float
@@ -116,7 +127,9 @@ def retune(index: int, tones_hz: np.ndarray, sharers: set[int], rows: float, low
 
 def tone_lines(s: dict, names_limit: int = 5) -> list[str]:
     """The summary's lines for a tone site (``s``: :meth:`ToneAudit.summary`)."""
-    lines = [f"tones    {s['tones']} tones in {s['tone_classes']} classes the camera tells apart ({s['rule']}, "
+    n, k = s["tones"], s["tone_classes"]
+    lines = [f"tones    {n} tone{'s' if n != 1 else ''} in {k} class{'es' if k != 1 else ''} the camera tells apart "
+             f"({s['rule']}, "
              f"smallest LED image {s['smallest_image_rows']:.0f} rows of {s['row_time_s'] * 1e6:g} us); readable "
              f"{s['lowest_readable_hz']:,.0f}..{s['highest_hz']:,.0f} Hz"]
     if s["below_one_period"]:
@@ -139,4 +152,5 @@ def clash_text(c: dict, poses: int) -> str:
             f"y {c['from_m'][1]:.2f}..{c['to_m'][1]:.2f}): a tone receiver cannot tell them apart there")
     r = c.get("retune")
     return text + (f"; retune {r['luminaire']} to {r['to_hz']:g} Hz (apart from {r['apart_from']})" if r
+                   else "; the retunes above settle it" if c.get("settled_by_earlier_retunes")
                    else "; no free tone within the limits: move one of them or switch one off")

@@ -39,3 +39,16 @@ def test_audit_summary_names_the_clash_and_counts_its_poses():
                            "around (2.00, 3.00) m")
     assert f"retune B to {c['retune']['to_hz']:g} Hz" in line
     assert audit.first_clash(["A", "B", "C", "D"]) == line
+
+
+def test_retunes_are_joint_not_each_against_the_old_site():
+    # three LEDs of one tone in one window: each retune must also keep apart from the retunes before it
+    tones = np.full(3, 2000.0)
+    audit = audit_tones(tones, np.ones(3, dtype=int), 100.0, 20e-6, 20_000.0, np.array([[0, 1, 2]]),
+                        np.array([True]), np.zeros((1, 3)))
+    s = audit.summary(["A", "B", "C"])
+    assert [c["luminaires"] for c in s["clashes"]] == [["A", "B"], ["A", "C"], ["B", "C"]]
+    assert s["clashes"][0]["retune"]["to_hz"] == 1900.0  # 100 Hz > (2000 + 1900) / 50; 1,950 Hz is not apart
+    assert s["clashes"][1]["retune"]["to_hz"] == 2100.0  # apart from 2,000 and from B's new 1,900 Hz
+    assert "retune" not in s["clashes"][2] and s["clashes"][2]["settled_by_earlier_retunes"]
+    assert clash_text(s["clashes"][2], 1).endswith("; the retunes above settle it")
