@@ -136,3 +136,15 @@ def test_a_tone_site_for_the_two_led_receiver(clash, tmp_path):
     s = json.loads(done.stdout)
     assert done.returncode == 3 and s["receiver"]["mode"] == "gravity"
     assert [c["luminaires"] for c in s["tones"]["clashes"]] == [["R2C2", "R2C3"]]
+
+
+def test_the_site_report_of_a_tone_site_shows_the_clash_and_no_flashing(clash, tmp_path):
+    import shutil
+
+    _, _, out = clash
+    shutil.copy(out / "plan.yaml", tmp_path / "plan.yaml")
+    done = vlp("vlp-report", str(tmp_path / "plan.yaml"))
+    assert done.returncode == 0, done.stderr
+    text = (tmp_path / "site-report.html").read_text()
+    assert "AMBIGUOUS R2C2 (3500 Hz) and R2C3 (3500 Hz)" in text and "tone drivers are configured outside" in text
+    assert "drivers verified" not in text
