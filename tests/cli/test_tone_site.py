@@ -148,3 +148,11 @@ def test_the_site_report_of_a_tone_site_shows_the_clash_and_no_flashing(clash, t
     text = (tmp_path / "site-report.html").read_text()
     assert "AMBIGUOUS R2C2 (3500 Hz) and R2C3 (3500 Hz)" in text and "tone drivers are configured outside" in text
     assert "drivers verified" not in text
+
+
+def test_from_plan_on_a_tone_plan_says_why_there_is_nothing_to_rebuild(clash, tmp_path):
+    _, _, out = clash
+    done = vlp("vlp-plan", "--from-plan", str(out / "plan.yaml"), "-o", str(tmp_path / "again"))
+    assert done.returncode == 1 and not (tmp_path / "again").exists()
+    assert "a tone site's plan (docs/tones.md) has no frames to check or rebuild" in done.stderr
+    assert done.stderr.count("\n") == 1
