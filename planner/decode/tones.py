@@ -5,16 +5,20 @@ LED (a saturated core in a glow, 30-60 rows, 1.5-5 periods) a halfway threshold 
 stripes short and reads 3-38 % too high (issue 37). This reader uses every row the LED lights, glow
 included, and no threshold:
 
-1. **LEDs**: pixels above the dark level by ``LIT_DN`` (the glow, not the core), gaps closed vertically
-   over half the longest period asked for, connected components of at least ``MIN_LED_PX``.
-2. **Profile**: each row's mean over the LED's columns in that row (its closed mask), over the LED's rows
-   and ``MARGIN_ROWS`` beyond each end: a window wider than the saturated core.
-3. **Frequency**: the periodogram's peak over ``1 / L .. 1 / 4`` cycles per row (``L`` the profile's rows),
-   on a grid 8 times finer than the FFT's bins, with an offset fitted at each trial (a DC term leaks into
-   the first bins of a plain FFT over 1.5 periods); then refined by a least-squares fit of an offset and
-   three harmonics (clipping and blur make the square wave's stripes uneven), to a fraction of a row.
-4. **Uncertainty**: the fit's standard error, ``s^2 (J^T J)^-1`` at the optimum (``s`` the residual RMS,
-   ``J`` the model's Jacobian). Rows blurred together are not independent, so it is a lower bound.
+1. **LEDs**: pixels above the dark level (the image's median) by ``LIT_DN``: the glow, not the core;
+   gaps closed vertically over half the longest period asked for; connected components of at least
+   ``MIN_LED_PX`` not cut by the image's border.
+2. **Profile**: each row's light above the dark level summed over the LED's pixels in that row, every row
+   of the LED: a window wider than the saturated core. Columns clipped over ``SATURATED_ROWS`` rows running
+   (a saturated core) and ``CORE_MARGIN_PX`` beside them are left out while other columns remain.
+3. **Frequency**: the model ``width(v) (a + sum_h b_h cos(2 pi h c v) + c_h sin(2 pi h c v))``,
+   ``width(v)`` the LED's pixels in row ``v`` (its envelope). The periodogram's peak over ``1 / L .. 1 / 4``
+   cycles per row (``L`` the profile's rows), one harmonic, on a grid 8 times finer than an FFT's bins,
+   with the offset fitted at each trial (a DC term leaks into the first bins of a plain FFT over 1.5
+   periods); then refined with ``HARMONICS`` harmonics (clipping and blur make the stripes uneven).
+4. **Uncertainty**: the fit's standard error, ``s^2 (J^T J)^-1`` at the optimum (``s^2`` the residual
+   variance, ``J`` the model's Jacobian). Rows blurred together are not independent, so it is a lower
+   bound (about half the error on saturated chips in a glow, docs/tones.md).
 """
 
 from __future__ import annotations
