@@ -35,9 +35,6 @@ LIT_DN = 25.0
 MIN_LED_PX = 40
 """Smallest LED kept [px]."""
 
-MIDDLE_COLUMNS = 1
-"""Columns each side of the LED's middle column averaged into its row profile."""
-
 SATURATED_DN = 255
 """A pixel at this level [DN of 255] is clipped."""
 
@@ -123,7 +120,8 @@ def stripe_frequency(profile: np.ndarray, width: np.ndarray) -> tuple[float, flo
 def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], row_time_s: float,
               dark_dn: float) -> ToneReading:
     """The tone of the LED at ``box`` whose closed mask is ``mask`` (:func:`find_tone_leds`) [Hz]: each row's light
-    above ``dark_dn`` summed over the mask, every row of the mask."""
+    above ``dark_dn`` summed over the mask, every row of the mask, columns through a saturated core left out
+    (module notes, 2)."""
     u0, v0, u1, v1 = box
     pixels = image[v0:v1 + 1, u0:u1 + 1]
     full = pixels >= SATURATED_DN
