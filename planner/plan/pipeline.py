@@ -11,7 +11,7 @@ import os
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -177,9 +177,10 @@ def _advice(layout: Layout, radii: np.ndarray, mode: Receiver, verification: Ver
     frames = None if layout.tones_hz is not None else FrameLimits(  # the changes' frames must fit too
         options.line_code, options.check_distance, options.driver_max_hz, options.video_fps, options.max_video_frames,
         options.mcu_clock_hz)
-    return advise(Site(layout.xyz, radii, layout.outline, options.camera, mode.name, filled), verification.coverage,
-                  *share, goal=options.coverage_goal, seed=options.seed, frames=frames,
-                  allow_unusable=options.allow_unusable)
+    advice = advise(Site(layout.xyz, radii, layout.outline, options.camera, mode.name, filled), verification.coverage,
+                    *share, goal=options.coverage_goal, seed=options.seed, frames=frames,
+                    allow_unusable=options.allow_unusable)
+    return replace(advice, tone_site=layout.tones_hz is not None)
 
 
 def default_outdir(layout_path: str | Path) -> Path:

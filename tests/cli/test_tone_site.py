@@ -156,3 +156,16 @@ def test_from_plan_on_a_tone_plan_says_why_there_is_nothing_to_rebuild(clash, tm
     assert done.returncode == 1 and not (tmp_path / "again").exists()
     assert "a tone site's plan (docs/tones.md) has no frames to check or rebuild" in done.stderr
     assert done.stderr.count("\n") == 1
+
+
+def test_repeated_tones_that_read_alike_everywhere_are_not_usable_and_the_verdict_says_retune(tmp_path):
+    # the 32-LED grid in 2 x 2 tiles of four tones: every window repeats 1 m away, so none names one place
+    doc = grid_site(tmp_path / "site.yaml", None)
+    for k, lum in enumerate(doc["luminaires"]):
+        lum["tone_hz"] = 2000.0 + 500 * ((k // 8) % 2 * 2 + k % 2)
+    (tmp_path / "site.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    done = vlp("vlp-plan", str(tmp_path / "site.yaml"), "-o", str(tmp_path / "out"), *FAST)
+    assert done.returncode == 3
+    assert "verdict  NOT USABLE: only 0.0 % of sampled poses decode" in done.stdout
+    assert "are ambiguous: repeated tones read alike, retune some (docs/tones.md)" in done.stdout
+    assert "--scheme auto" not in done.stdout + done.stderr
