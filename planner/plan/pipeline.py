@@ -91,6 +91,10 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
     one with fewer bits that has no ambiguous pose (the paper's on a tie); if
     neither verifies, one unique ID per luminaire. ``timings`` records each stage's time.
     """
+    if layout.tones_hz is not None:  # before the frame options' checks, whose advice does not apply to it
+        from planner.plan.tone_site import check_tone_options
+
+        check_tone_options(layout.source_path, options.scheme, options.verify)
     _check_options(options)
     clock = timings or Timings()
     clock.stage("pose sampling", f"{len(layout.luminaires)} luminaires")

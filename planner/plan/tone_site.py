@@ -18,15 +18,21 @@ from planner.receivers.choice import ReceiverChoice, seen_shares
 from planner.receivers.modes import AUTO, PAPER, receiver_for
 
 
+def check_tone_options(where: str, scheme: str, verify: bool) -> None:
+    """:class:`UsageError` for the options a tone site has no use for: a scheme (its tones are kept) and no
+    verification (the audit is the verification)."""
+    if scheme != "auto":
+        raise UsageError(f"`scheme` {scheme}: {where} is a tone site (every luminaire carries tone_hz), whose tones "
+                         "are kept, not planned; drop the scheme")
+    if not verify:
+        raise UsageError(f"{where} is a tone site: it is audited by verifying it; drop `verify=False`")
+
+
 def keep_tones(layout: Layout, tones_hz: np.ndarray, job: Job, receiver: str, accelerometer_sigma_deg: float,
                driver_max_hz: float) -> tuple[Planned, ReceiverChoice | None, ToneAudit]:
     """The tone site's IDs (tone classes), their verification for the receiver mode asked for (``auto``: the
     paper's three-LED receiver), the receiver choice (None for the paper's) and the tone audit."""
-    if job.scheme != "auto":
-        raise UsageError(f"`scheme` {job.scheme}: {layout.source_path} is a tone site (every luminaire carries "
-                         "tone_hz), whose tones are kept, not planned; drop the scheme")
-    if not job.verify:
-        raise UsageError(f"{layout.source_path} is a tone site: it is audited by verifying it; drop `verify=False`")
+    check_tone_options(layout.source_path, job.scheme, job.verify)
     mode: Receiver = PAPER if receiver == AUTO else receiver_for(receiver)
     cam, xyz, radii = job.camera, job.xyz, job.radii
     check_tone_limits([lum.name for lum in layout.luminaires], tones_hz, cam.row_time_s, driver_max_hz,

@@ -101,6 +101,10 @@ def test_bundled_tone_rig(tmp_path):
     ("- {name: A, x: 0, y: 0, tone_hz: 2000}\n- {name: B, x: 1, y: 0, tone_hz: 2500}\n"
      "- {name: C, x: 0, y: 1, tone_hz: 3000}\n", ("--scheme", "window"), 2,
      "--scheme window: site.yaml is a tone site"),
+    # not the frame sites' "--no-verify needs an explicit --scheme", which --scheme would then refuse
+    ("- {name: A, x: 0, y: 0, tone_hz: 2000}\n- {name: B, x: 1, y: 0, tone_hz: 2500}\n"
+     "- {name: C, x: 0, y: 1, tone_hz: 3000}\n", ("--no-verify",), 2,
+     "site.yaml is a tone site: it is audited by verifying it; drop --no-verify"),
 ])
 def test_refusals_are_one_line(tmp_path, body, args, code, words):
     (tmp_path / "site.yaml").write_text("luminaires:\n" + body)
