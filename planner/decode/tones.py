@@ -144,3 +144,32 @@ def read_tones(image: np.ndarray, row_time_s: float, lowest_hz: float) -> list[T
     dark = float(np.median(image))
     found = [read_tone(image, mask, box, row_time_s, dark) for mask, box in find_tone_leds(image, row_time_s, lowest_hz)]
     return sorted(found, key=lambda r: (r.box[1], r.box[0]))
+
+
+@dataclass(frozen=True)
+class ToneMatch:
+    """The plan tone a reading is matched to (``index``), its probability among the plan's tones, and how many
+    standard deviations the reading lies from it (``z``); ``index`` None when no tone lies within ``MAX_Z``."""
+
+    index: int | None
+    probability: float
+    z: float
+
+
+MAX_Z = 4.0
+"""A reading farther than this many standard deviations from every plan tone is matched to none."""
+
+
+def match_tone(reading: ToneReading, tones_hz: np.ndarray) -> ToneMatch:
+    """The plan tone most likely to have drawn ``reading``, by likelihood, not by rounding to the nearest: each tone
+    ``f_k`` reads within ``f_k (1 +- 1/R)`` (docs/tones.md; a uniform spread, sigma ``f_k / (R sqrt 3)``) plus the
+    fit's own error, so a tone's spread grows with it; equal priors."""
+    tones = np.asarray(tones_hz, dtype=float)
+    sigma = np.hypot(reading.sigma_hz, tones / (reading.rows * np.sqrt(3.0)))
+    z = (reading.tone_hz - tones) / sigma
+    log_like = -0.5 * z**2 - np.log(sigma)
+    best = int(np.argmax(log_like))
+    weights = np.exp(log_like - log_like[best])
+    if abs(z[best]) > MAX_Z:
+        return ToneMatch(None, 0.0, float(abs(z[best])))
+    return ToneMatch(best, float(weights[best] / weights.sum()), float(abs(z[best])))

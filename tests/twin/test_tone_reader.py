@@ -94,3 +94,18 @@ def test_stripe_frequency_of_a_clean_square_wave(cycles):
     got, sigma = stripe_frequency(100 * wave, np.ones(50))
     assert got == pytest.approx(cycles, rel=1 / 50)  # edges placed to the row: the reading within f (1 +- 1/R)
     assert sigma > 0
+
+
+def test_readings_match_their_plan_tone_by_likelihood():
+    from planner.decode.tones import match_tone
+
+    plan = np.array(TONES_HZ)
+    for tone, reading in _readings(Sensor(), None, 0.01, 3, seed=5):
+        m = match_tone(reading, plan)
+        assert m.index is not None and plan[m.index] == tone and m.probability > 0.99, (tone, reading, m)
+    # a reading between two plan tones is matched to neither with confidence; one far from all, to none
+    from planner.decode.tones import ToneReading
+
+    halfway = match_tone(ToneReading(2750.0, 150.0, 45, 2.6, (0, 0, 1, 1)), plan)  # an uncertain reading
+    assert halfway.index in (1, 2) and 0.4 < halfway.probability < 0.9
+    assert match_tone(ToneReading(7000.0, 10.0, 45, 6.6, (0, 0, 1, 1)), plan).index is None
