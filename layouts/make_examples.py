@@ -36,6 +36,12 @@ if __name__ == "__main__":
         "The paper's test rig (Table 2): four LEDs 2.5 m up; radius 10 cm assumed (not in the paper).\n"
         "# An example of a site that does not work for positioning over a floor: four LEDs cover only poses right\n"
         "# under them (about 21 % with the paper's camera: NOT USABLE); the site advice shows --camera ultrawide.")
+    dump("tone-rig.yaml", {"unit": "cm", "height": 246, "radius": 1, "luminaires": [
+        {"name": f"T{k + 1}", "x": x, "y": y, "tone_hz": hz} for k, (x, y, hz) in enumerate(
+            [(-40, -40, 2000), (40, -40, 2500), (0, 0, 3000), (-40, 40, 3500), (40, 40, 4000)])]},
+        "A five-LED research rig, an existing tone site (docs/tones.md): small LEDs about 2 cm across, 2.46 m up,\n"
+        "# each blinking a square-wave tone, 2,000-4,000 Hz in 500 Hz steps (issue 37). The positions, a 0.8 m square\n"
+        "# and its centre, are assumed. Five LEDs cover few poses with the paper's camera: NOT USABLE, see the advice.")
     dump("outline-room.yaml", {"unit": "m", "height": 2.5, "outline": [[0, 0], [16, 0], [16, 8], [0, 8]]},
          "A 16 m x 8 m room with no luminaires: use with --leds N (about 0.5 m pitch, --leds 512, for the\n"
          "# paper's camera; sparser lattices are NOT USABLE and the site advice says what would work).")

@@ -25,6 +25,10 @@ LOCATE_METHODS = ("paper", "perspective")
 DRIVER_MAX_HZ = 20_000.0
 """Default fastest chip rate a luminaire driver switches cleanly [Hz] (``--driver-max-hz``)."""
 
+FLICKER_HZ = 200.0
+"""Lowest allowed repetition of a light's slowest on/off cycle [Hz] (IEEE 802.15.7's flicker guidance): a frame's
+longest run, or a tone's square wave (docs/tones.md)."""
+
 VIDEO_FPS = 30.0
 """Default video frame rate of the receiver [1/s] (``--video-fps``), for frames read over several video frames."""
 

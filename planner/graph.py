@@ -13,10 +13,13 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
 from scipy.spatial import Delaunay, QhullError
+
+if TYPE_CHECKING:  # NetworkX loads when a graph is built, not with every module that reads one
+    import networkx as nx
 
 MAX_FACING_ANGLE_RAD = math.radians(80.0)
 """A Delaunay edge faced by an angle at least this large is not a neighbour edge [rad]."""
@@ -225,6 +228,8 @@ def build_graph(xy: np.ndarray) -> NeighbourGraph:
     xy = np.asarray(xy, dtype=float)
     n = len(xy)
     edges = neighbour_edges(xy)
+    import networkx as nx
+
     graph: nx.Graph[int] = nx.Graph()
     graph.add_nodes_from(range(n))
     lengths = np.linalg.norm(xy[edges[:, 1]] - xy[edges[:, 0]], axis=1) if len(edges) else []

@@ -2,12 +2,13 @@
 ``slow`` marker (``pytest -m "not slow"`` is the fast subset: see the README)."""
 
 import hashlib
+import io
 import json
 import math
 import os
 import subprocess
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -77,6 +78,32 @@ def shared_vlp_plan(tmp_path_factory, *args: str) -> PlanRun:
             record.write_text(json.dumps([done.returncode, done.stdout, done.stderr]))
         code, stdout, stderr = json.loads(record.read_text())
     return PlanRun(code, stdout, stderr, out)
+
+
+SITE_KEY = bytes(range(32))
+"""The tests' site key (vlp-flash's sim:// drivers take it): the sealed shared plans are sealed under it."""
+
+
+def grid32_copy(tmp_path_factory, dest: Path, *extra: str, sealed: bool = False) -> Path:
+    """Fill the new folder ``dest`` with what ``vlp-plan layouts/grid-32.yaml -o dest --no-map --no-report --json
+    *extra`` writes (with ``--key-file`` holding :data:`SITE_KEY` if ``sealed``): planned in process once for the
+    whole run, copied for each caller, which may write beside it. Returns ``dest / "plan.yaml"``."""
+    import shutil
+
+    from planner.cli.plan import main as plan_main
+
+    key = hashlib.sha256("\0".join([*extra, str(sealed)]).encode()).hexdigest()[:16]
+    with _shared_folder(tmp_path_factory, f"grid-32-{key}") as out:
+        if not (out / "plan.yaml").is_file():
+            site_key = out.with_name(f"{out.name}.key")
+            site_key.write_text(SITE_KEY.hex())
+            site_key.chmod(0o600)
+            with redirect_stdout(io.StringIO()):  # the JSON summary: the tests read the files
+                code = plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-map", "--no-report",
+                                  "--json", *extra, *(["--key-file", str(site_key)] if sealed else [])])
+            assert code == 0 and (out / "plan.yaml").is_file(), code
+        shutil.copytree(out, dest)
+    return dest / "plan.yaml"
 
 
 @pytest.fixture(scope="session")

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT
-from planner.cli.plan import main as plan_main
+from conftest import grid32_copy
 from planner.errors import InputError
 from planner.plan.file import PlanFile, load_plan
 
@@ -45,10 +44,7 @@ EDITS = {  # what a careless or hostile edit does -> the field the message must 
 
 @pytest.fixture(scope="module")
 def plan_doc(tmp_path_factory):
-    out = tmp_path_factory.mktemp("pf") / "g32"
-    assert plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-map", "--no-report", "--json",
-                      "--error-poses-per-m2", "0"]) == 0
-    return out / "plan.yaml"
+    return grid32_copy(tmp_path_factory, tmp_path_factory.mktemp("pf") / "g32", "--error-poses-per-m2", "0")
 
 
 def _edited(plan_doc, tmp_path, key):

@@ -95,6 +95,7 @@ class Advice:
     receiver: str = "three"
     frames: FrameLimits | None = None  # the plan's frame limits the changes were checked against
     allow_unusable: bool = False  # the plan was made with --allow-unusable (vlp-verify exits 0 on it too)
+    tone_site: bool = False  # an existing tone site (docs/tones.md): its IDs are kept, not chosen by a scheme
 
     @property
     def usable(self) -> bool:
@@ -118,7 +119,7 @@ class Advice:
                 "baseline": round(self.baseline, 4), "changes": [r.summary() for r in self.rows],
                 "recommended": None if rec is None else self.rows.index(rec),
                 "driver_max_hz": None if self.frames is None else self.frames.driver_max_hz,
-                "allow_unusable": self.allow_unusable}
+                "allow_unusable": self.allow_unusable, **({"tone_site": True} if self.tone_site else {})}
 
 
 def advice_per_m2(area: np.ndarray) -> float:
@@ -241,7 +242,9 @@ def verdict(advice: dict) -> str:
         few, alike = 100 * advice.get("too_few_leds", 0.0), 100 * advice.get("ambiguous", 0.0)
         seen = MODES.get(str(advice.get("receiver")), PAPER).leds_text
         why = (f"{few:.0f} % see fewer than {seen} whole LEDs: the luminaires are too sparse for this camera"
-               if few >= 50 else f"{alike:.0f} % are ambiguous under this scheme (--scheme auto avoids that)"
+               if few >= 50 else f"{alike:.0f} % are ambiguous: " + ("repeated tones read alike, retune some (docs/tones.md)"
+                                                                       if advice.get("tone_site") else
+                                                                       "under this scheme (--scheme auto avoids that)")
                if alike >= few else "poses fail near the walls or see collinear LEDs")
         return (f"NOT USABLE: only {cov:.1f} % of sampled poses decode (a usable plan needs "
                 f"{100 * advice['usable_from']:.0f} %); {why}; see the advice table")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from planner.errors import PositioningError
@@ -75,6 +74,8 @@ def fit_ellipse(points_px: np.ndarray) -> Ellipse:
     pts = np.asarray(points_px, dtype=np.float32).reshape(-1, 1, 2)
     if len(pts) < 5:
         raise PositioningError(f"{len(pts)} edge points: an ellipse needs at least five")
+    import cv2  # here: reading a camera file needs no OpenCV
+
     (cx, cy), (w, h), angle_deg = cv2.fitEllipse(pts)
     angle = np.radians(angle_deg)
     if h > w:

@@ -82,9 +82,11 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError(f"{missing[0]}: no such file; give --layouts DIR with grid-32/256/512.yaml")
     from planner.layout.read import read_layout
     from planner.plan.file import load_plan
+
+    plan = load_plan(args.plan) if args.plan else None  # a bad plan is refused before the study loads its stages
     from planner.studies.efficiency import curve, paper_grid, site_figures, table_row
 
-    site = site_figures(load_plan(args.plan), args.plan) if args.plan else None
+    site = site_figures(plan, args.plan) if plan is not None else None
     progress = _progress if sys.stderr.isatty() else None
     table = []
     for n, name in PAPER_LAYOUTS.items():

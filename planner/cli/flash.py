@@ -213,8 +213,9 @@ def main(argv: list[str] | None = None) -> int:
 
     text = read_text(doc_path, "plan", "no such plan file; run vlp-plan first")  # one read: checked, hashed, sealed
     key = None if args.dry_run and not (args.key_file or os.environ.get("VLP_SITE_KEY")) else cli.site_key(args.key_file)
+    sealed = ""  # the plan's generation: the time of its seal (a journal refuses a plan older than its own)
     if key is not None:  # only the site key's holder makes a plan vlp-flash signs images of (docs/plan-format.md)
-        check_seal(doc_path, text, key)
+        sealed = check_seal(doc_path, text, key)
     plan = load_plan(doc_path, text)
     digest = plan_hash(text)
     targets = _targets(plan, args)
@@ -224,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
     where = read_bus_map(plan, args.bus_map) if args.bus else {}
     if args.bus and (absent := [e.name for e in targets if e.name not in where]):
         raise InputError(f"--bus-map {args.bus_map}: no address for {absent[0]!r}")
-    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest, key)
+    journal = Journal(args.journal or doc_path.with_name("as-built.json"), digest, key, sealed)
     if args.dry_run:
         for e in targets:
             skip = args.resume and journal.verified(e.name, args.image_version) is not None

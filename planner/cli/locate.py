@@ -108,8 +108,6 @@ def result_document(site: Site, snap: Snapshot | None, found, max_residual_px: f
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from planner.plan.file import load_plan
-    from planner.positioning.locate import Site, locate
-    from planner.positioning.snapshot_file import read_snapshot
 
     if args.image and (args.observation or args.simulate):
         raise UsageError("--image locates a photo: give it without OBSERVATION.json and --simulate")
@@ -124,6 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     if not args.observation:
         raise UsageError("give an OBSERVATION.json or --image PHOTO to locate, or --simulate a pose "
                          "(see vlp-locate --help)")
+    from planner.positioning.locate import Site, locate  # the solvers (SciPy, OpenCV) load for a plan that reads
+    from planner.positioning.snapshot_file import read_snapshot
+
     site, snap = Site.from_plan(plan), read_snapshot(args.observation)
     found = locate(site, snap, args.method, args.max_residual_px)
     result = result_document(site, snap, found, args.max_residual_px)

@@ -41,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
         "write plan.yaml, an annotated DXF, map.png, coverage.png, error.png, the site report (HTML and PDF) and each luminaire's driver "
         "configuration (firmware/) into OUTDIR.",
         ok="done", check_failed="plan written but some sampled pose is ambiguous (only with an explicit --scheme), "
+        "two luminaires of one tone share a window (a tone site: docs/tones.md), "
         "or the plan is NOT USABLE (under 50 % of sampled poses decode; --allow-unusable exits 0)",
         bad_input="or no plan possible", docs="docs/cli.md", json="print a JSON summary on stdout instead of text",
     )
@@ -140,9 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.layout:
         parser.error("the following arguments are required: LAYOUT")
     from planner.layout.read import read_layout
-    from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
     from planner.plan.timings import Timings
-    from planner.receivers.modes import PAPER
 
     if args.templates and not any(Path(args.templates).glob("*.j2")):
         raise UsageError(f"--templates {args.templates}: no *.j2 templates there"
@@ -162,6 +161,10 @@ def main(argv: list[str] | None = None) -> int:
     work = plan_work(layout.xy, layout.outline, scheme=args.scheme, verify=not args.no_verify,
                      poses_per_m2=args.poses_per_m2, error_poses_per_m2=args.error_poses_per_m2)
     check_work(work, args.max_poses)
+    # The stages (ortools, networkx, scipy, cv2, matplotlib) load only now: every refusal above is quick.
+    from planner.plan.pipeline import FirmwareOptions, PlanOptions, default_outdir, make_plan, write_outputs
+    from planner.receivers.modes import PAPER
+
     with tiles:
         plan = make_plan(layout, PlanOptions(scheme=args.scheme, time_budget=args.time_limit, seed=args.seed,
                                              camera=camera, verify=not args.no_verify, poses_per_m2=args.poses_per_m2,
@@ -211,6 +214,7 @@ def main(argv: list[str] | None = None) -> int:
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         "no_frames": plan.no_frames,
+        "tones": plan.tones.summary([lum.name for lum in layout.luminaires]) if plan.tones is not None else None,
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outdir": str(outdir),
         "files": [str(p) for p in written],
@@ -234,6 +238,10 @@ def main(argv: list[str] | None = None) -> int:
               "the site report", file=sys.stderr)
     if plan.no_frames and not unusable:
         print(f"vlp-plan: plan written, but without frames or firmware: {plan.no_frames}; see the advice",
+              file=sys.stderr)
+        return ExitCode.CHECK_FAILED
+    if plan.tones is not None and plan.tones.clashes:  # an existing tone site's clashes (docs/tones.md)
+        print(f"vlp-plan: plan written, but {plan.tones.first_clash([lum.name for lum in layout.luminaires])}",
               file=sys.stderr)
         return ExitCode.CHECK_FAILED
     if v is not None and v.conflicts:
@@ -316,6 +324,10 @@ def _print_summary(s: dict) -> None:
             print("           single-frame: one LED image holds a whole frame")
     elif s["no_frames"]:
         print(f"  frame    none: {s['no_frames']}; no firmware written")
+    if s.get("tones"):
+        from planner.advice.tones import tone_lines
+
+        print("\n".join(tone_lines(s["tones"])))
     a = s["accuracy"]
     if a and a["located"]:
         from planner.positioning.accuracy import method_text

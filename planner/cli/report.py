@@ -52,8 +52,6 @@ def main(argv: list[str] | None = None) -> int:
     from planner.flash.seal import check_seal
     from planner.plan.file import load_plan
     from planner.plan.model import plan_hash
-    from planner.report.content import checklist
-    from planner.report.files import write_report
 
     plan_path = Path(args.plan)
     text = read_text(plan_path, "plan", "no such plan file; run vlp-plan first")  # one read: checked and hashed
@@ -72,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError(f"-o {outdir}: exists and is not a directory")
     if args.camera and not args.photos:
         raise UsageError("--camera goes with --photos (the camera that took them)")
+    from planner.report.content import checklist  # the report's stages load only once the inputs are checked
+    from planner.report.files import write_report
+
     asbuilt = photo_check(plan, args) if args.photos else None
     written = write_report(plan, digest, plan_path.parent, outdir, entries, asbuilt)
     statuses = [s.status for s in checklist(plan, entries)]

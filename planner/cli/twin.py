@@ -85,8 +85,6 @@ def build_parser() -> argparse.ArgumentParser:
 def _sensor(args) -> Sensor:
     from planner.twin.render import Sensor
 
-    if args.blur_px < 0 or args.read_noise_dn < 0 or not 0 <= args.off_level < 1:
-        raise UsageError("--blur-px and --read-noise-dn must be >= 0, --off-level in [0, 1)")
     return Sensor(exposure_s=args.exposure_us * 1e-6, blur_px=args.blur_px, read_noise_dn=args.read_noise_dn,
                   off_level=args.off_level)
 
@@ -174,11 +172,14 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError("--png needs --pose (a batch writes failed frames with --save-failures DIR)")
     cli.output_file("--png", args.png)  # its folder must exist before any frame is rendered
     cli.output_dir("--save-failures", args.save_failures)
-    sensor = _sensor(args)
+    if args.blur_px < 0 or args.read_noise_dn < 0 or not 0 <= args.off_level < 1:
+        raise UsageError("--blur-px and --read-noise-dn must be >= 0, --off-level in [0, 1)")
     from planner.plan.file import load_plan
-    from planner.twin.twin import summary
 
     plan = load_plan(args.plan)
+    sensor = _sensor(args)  # the renderer (OpenCV, SciPy) loads only for a plan that reads
+    from planner.twin.twin import summary
+
     if args.pose:
         return _single(plan, args, sensor)
     results = run_batch(plan, args, sensor)

@@ -9,8 +9,10 @@ so a caller can report that the result may differ on another machine.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from ortools.sat.python import cp_model
+if TYPE_CHECKING:  # OR-Tools loads when a search starts (about 0.3 s), not with every module that may search
+    from ortools.sat.python import cp_model
 
 WALL_FACTOR = 3.0
 """Wall-clock cap as a multiple of the deterministic budget."""
@@ -29,8 +31,17 @@ class Solved:
     wall_stopped: bool
 
 
+def new_model() -> cp_model.CpModel:
+    """An empty CP-SAT model (OR-Tools imported here, on the first search)."""
+    from ortools.sat.python import cp_model
+
+    return cp_model.CpModel()
+
+
 def solve(model: cp_model.CpModel, *, time_budget: float, seed: int, first_solution: bool = False) -> Solved:
     """Run CP-SAT on ``model``; ``first_solution`` stops at the first one (feasibility models)."""
+    from ortools.sat.python import cp_model
+
     solver = cp_model.CpSolver()
     solver.parameters.max_deterministic_time = time_budget
     solver.parameters.max_time_in_seconds = WALL_FACTOR * time_budget

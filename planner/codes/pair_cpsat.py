@@ -16,7 +16,6 @@ small room) it is nearly ``n`` and settles the width without a search.
 from __future__ import annotations
 
 import numpy as np
-from ortools.sat.python import cp_model
 
 from planner.codes import cpsat
 
@@ -41,7 +40,7 @@ def cpsat_pair_labels(index, K: int, *, time_budget: float, seed: int = 0) -> tu
 
     ``time_budget`` is CP-SAT's deterministic time (:mod:`planner.codes.cpsat`)."""
     n, rows, act, cls = index.n, index.rows, index.active, index.cls
-    m = cp_model.CpModel()
+    m = cpsat.new_model()
     x = [m.new_int_var(0, K - 1, f"x{i}") for i in range(n)]
     keys = []
     for r, (a, b) in enumerate(rows.tolist()):

@@ -15,7 +15,6 @@ import math
 from collections import deque
 
 import numpy as np
-from ortools.sat.python import cp_model
 
 from planner.codes import cpsat
 from planner.graph import NeighbourGraph
@@ -77,7 +76,7 @@ def cpsat_pair_labels(graph: NeighbourGraph, per_class: int, time_budget: float,
     """
     odd = graph.odd
     n = len(odd)
-    model = cp_model.CpModel()
+    model = cpsat.new_model()
     x = [model.new_int_var(0, per_class - 1, f"x{v}") for v in range(n)]
     cross = graph.cross_edges
     if len(cross):

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from itertools import repeat
 
 import numpy as np
-from ortools.sat.python import cp_model
 
 from planner.codes import cpsat
 
@@ -404,7 +403,7 @@ def cpsat_window_labels(n: int, windows, shape, symmetric, K: int, *, seed: int 
     ``time_budget`` is deterministic time (:mod:`planner.codes.cpsat`). ``hint`` seeds the search.
     """
     w, s, sym = _arrays(windows, shape, symmetric)
-    model = cp_model.CpModel()
+    model = cpsat.new_model()
     used = np.unique(w)
     x = {int(v): model.new_int_var(0, K - 1, f"x{v}") for v in used}
     groups: dict[int, list] = {}

@@ -1,9 +1,14 @@
 """The as-built journal: which driver got which image, when, and what each driver reported holding.
 
-One JSON file (format ``vlp-asbuilt/1``) per plan. Each entry written by ``vlp-flash`` carries a
+One JSON file (format ``vlp-asbuilt/2``) per plan. Each entry written by ``vlp-flash`` carries a
 ``seal``, an HMAC under a key derived from the site key (:func:`~planner.flash.keys.journal_key`) over
-the plan hash, the luminaire's name and the entry: ``vlp-flash``, and ``vlp-report --key-file``, refuse a
-journal with an entry whose seal does not check (edited, written by hand, moved to another luminaire or plan).
+the plan hash, the luminaire's name and the entry; the file's ``head`` lists every entry's name and seal, in
+order, under one more HMAC that also covers the plan hash and the plan's generation (its seal time,
+:mod:`planner.flash.seal`). ``vlp-flash``, and ``vlp-report --key-file``, refuse a journal with an entry whose
+seal does not check (edited, written by hand, moved to another luminaire or plan) and one whose entries are not
+the head's (an entry removed, reordered, added, or an older one put back), naming the entry; and ``vlp-flash``
+refuses a plan sealed before the one the journal records as flashed. A ``vlp-asbuilt/1`` journal (entries
+sealed one by one, no head) is read only without a key.
 After every driver the entry is merged into the file under a lock (``fcntl.flock`` on ``.<name>.lock`` beside it:
 re-read, update that one luminaire, replace atomically), so two ``vlp-flash`` runs
 on one plan both end with every entry, and an interrupted batch leaves a complete
@@ -31,7 +36,9 @@ from planner.errors import InputError, UsageError
 from planner.flash.flasher import FlashResult
 from planner.flash.keys import journal_key
 
-FORMAT = "vlp-asbuilt/1"
+FORMAT = "vlp-asbuilt/2"
+OLD_FORMAT = "vlp-asbuilt/1"
+"""Journals before the head: read without a key (vlp-report), refused with one (a removal could not be told)."""
 MAX_BYTES = 64 << 20
 """Most bytes of a journal read (65,534 luminaires at about 700 bytes each fit)."""
 HOLDS_IMAGE = ("flashed", "current", "verified")
@@ -73,6 +80,11 @@ class _JournalFile(BaseModel):
     luminaires: dict[str, _Entry] = {}
 
 
+DISTRUST = ("so no entry of it is believed: move the journal away; vlp-flash --verify-only rebuilds it from the "
+            "drivers' proved answers")
+"""The end of every refusal of a journal's seals: what follows and what to do."""
+
+
 def seal(key: bytes, plan_hash: str, name: str, entry: dict) -> str:
     """The seal of ``name``'s ``entry`` (its ``seal`` field aside): HMAC-SHA256 over canonical JSON, hex."""
     body = {k: v for k, v in entry.items() if k != "seal"}
@@ -80,14 +92,35 @@ def seal(key: bytes, plan_hash: str, name: str, entry: dict) -> str:
     return hmac.new(key, text.encode("ascii"), hashlib.sha256).hexdigest()
 
 
-class Journal:
-    """The journal at ``path`` for the plan with hash ``plan_hash`` (read at once if it exists). With ``site_key``
-    every entry's seal is checked on reading and made on writing; without it (vlp-report without --key-file) it is
-    read unchecked."""
+def head_mac(key: bytes, plan_hash: str, plan_sealed: str, index: list) -> str:
+    """The head's HMAC-SHA256 (hex) over the plan hash, the plan's seal time and ``index``, the [name, seal] of every
+    entry in the file's order: it fixes which entries the journal holds, in which order, and which of each."""
+    text = json.dumps(["vlp-asbuilt/2 head", plan_hash, plan_sealed, index], separators=(",", ":"), ensure_ascii=True)
+    return hmac.new(key, text.encode("ascii"), hashlib.sha256).hexdigest()
 
-    def __init__(self, path: str | Path, plan_hash: str, site_key: bytes | None = None):
+
+def _index(doc: dict) -> list | None:
+    """The head's [name, seal] pairs if the head is well formed, else None."""
+    head = doc.get("head")
+    if not isinstance(head, dict) or not isinstance(head.get("hmac_sha256"), str):
+        return None
+    index = head.get("entries")
+    if not isinstance(index, list):
+        return None
+    if not all(isinstance(i, list) and len(i) == 2 and all(isinstance(s, str) for s in i) for i in index):
+        return None
+    return index if isinstance(doc.get("plan_sealed", ""), str) else None
+
+
+class Journal:
+    """The journal at ``path`` for the plan with hash ``plan_hash``, sealed at ``plan_sealed`` (its generation; ""
+    for a seal without a time), read at once if it exists. With ``site_key`` every seal, and the head, is checked on
+    reading and made on writing; without it (vlp-report without --key-file) it is read unchecked."""
+
+    def __init__(self, path: str | Path, plan_hash: str, site_key: bytes | None = None, plan_sealed: str = ""):
         self.path = Path(path)
         self.plan_hash = plan_hash
+        self.plan_sealed = self.recorded_sealed = plan_sealed  # the latter: the newest the file records
         self._key = journal_key(site_key) if site_key is not None else None
         self.lock_path = self.path.with_name(f".{self.path.name}.lock")
         self.entries = self._read()
@@ -101,9 +134,13 @@ class Journal:
             doc = load_json(self.path, "journal", max_bytes=MAX_BYTES)
         except InputError as exc:
             raise InputError(f"{exc}; move it away to start a new one") from None
-        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        if not isinstance(doc, dict) or doc.get("format") not in (FORMAT, OLD_FORMAT):
             raise InputError(f"{self.path}: not a {FORMAT} journal; move it away to start a new one")
+        if self._key is not None and doc["format"] == OLD_FORMAT:
+            raise InputError(f"{self.path}: a {OLD_FORMAT} journal, from a vlp-flash before the journal's head: an "
+                             f"entry removed from it or an older one put back cannot be told, {DISTRUST}")
         if doc.get("plan_hash") != self.plan_hash:
+            self._older_plan(doc)
             raise InputError(f"{self.path}: journal of plan {doc.get('plan_hash')}, not of this plan "
                              f"({self.plan_hash}); give another `journal` for a new plan")
         checked = validated(_JournalFile, doc, str(self.path), "a journal", strict=True,
@@ -112,10 +149,52 @@ class Journal:
             for name, raw in doc.get("luminaires", {}).items():
                 if not hmac.compare_digest(str(raw.get("seal", "")), seal(self._key, self.plan_hash, name, raw)):
                     raise InputError(f"{self.path}: journal seal does not check: the entry of {name!r} was edited "
-                                     "(or written by hand, by a vlp-flash before seals, or under another site key), so "
-                                     "no entry of it is believed: move the journal away; vlp-flash --verify-only "
-                                     "rebuilds it from the drivers' proved answers")
+                                     "(or written by hand, by a vlp-flash before seals, or under another site key), "
+                                     + DISTRUST)
+            self._check_head(doc)
+        self.recorded_sealed = max(self.plan_sealed, str(doc.get("plan_sealed", "")))
         return {name: entry.model_dump(exclude_unset=True) for name, entry in checked.luminaires.items()}
+
+    def _head_checks(self, doc: dict) -> list | None:
+        """The head's index if its HMAC checks under the journal key, else None."""
+        index = _index(doc)
+        if index is None or self._key is None:
+            return None
+        mac = head_mac(self._key, str(doc.get("plan_hash")), doc.get("plan_sealed", ""), index)
+        return index if hmac.compare_digest(doc["head"]["hmac_sha256"], mac) else None
+
+    def _check_head(self, doc: dict) -> None:
+        """:class:`InputError` naming the first entry that is not the head's: removed, added, an older one put back,
+        or out of order (the head fixes which entries vlp-flash last wrote, and in which order)."""
+        index = self._head_checks(doc)
+        if index is None:
+            raise InputError(f"{self.path}: journal head missing or not checking (edited, written by hand, or under "
+                             f"another site key), {DISTRUST}")
+        listed, found = dict(index), doc.get("luminaires", {})
+        why = next((f"the entry of {n!r} was removed (the head lists it)" for n in listed if n not in found), None)
+        why = why or next((f"the entry of {n!r} was added (the head does not list it: copied from another journal?)"
+                           for n in found if n not in listed), None)
+        why = why or next((f"the entry of {n!r} is not the one vlp-flash wrote last (an older entry of it put back, "
+                           "or one from another journal of this plan)" for n in found
+                           if found[n].get("seal") != listed[n]), None)
+        if why is None and list(found) != [n for n, _ in index]:
+            n = next(a for a, (b, _) in zip(found, index, strict=True) if a != b)
+            why = f"the entries were reordered (the head lists another entry where {n!r} is)"
+        if why is not None:
+            raise InputError(f"{self.path}: journal chain broken: {why}, {DISTRUST}")
+
+    def _older_plan(self, doc: dict) -> None:
+        """Refuse this plan if the journal, of another plan, records that plan flashed and sealed after this one."""
+        theirs = doc.get("plan_sealed", "")
+        entries = doc.get("luminaires")
+        flashed = isinstance(entries, dict) and any(isinstance(e, dict) and e.get("verified") is True
+                                                    and e.get("status") in HOLDS_IMAGE for e in entries.values())
+        if not (flashed and isinstance(theirs, str) and theirs > self.plan_sealed and self._head_checks(doc)):
+            return
+        raise InputError(f"{self.path}: this plan ({self.plan_hash}, sealed {self.plan_sealed or 'without a time'}) "
+                         f"is older than plan {doc.get('plan_hash')} (sealed {theirs}), which this journal records as "
+                         "flashed: vlp-flash does not put an older plan back; flash the newer plan, or, to put this "
+                         "one back deliberately, seal it anew (vlp-plan --from-plan PLAN -o NEWDIR --key-file FILE)")
 
     def check_writable(self) -> None:
         """Refuse (before anything is flashed) a journal that could not be written: a missing or read-only folder."""
@@ -219,5 +298,10 @@ class Journal:
             if self._key is not None:
                 for n in changed:
                     self.entries[n]["seal"] = seal(self._key, self.plan_hash, n, self.entries[n])
-            doc = {"format": FORMAT, "plan_hash": self.plan_hash, "luminaires": dict(sorted(self.entries.items()))}
+            doc: dict = {"format": FORMAT, "plan_hash": self.plan_hash, "plan_sealed": self.recorded_sealed,
+                         "luminaires": dict(sorted(self.entries.items()))}
+            if self._key is not None:
+                index = [[n, e["seal"]] for n, e in doc["luminaires"].items()]
+                doc["head"] = {"entries": index, "hmac_sha256": head_mac(self._key, self.plan_hash,
+                                                                         self.recorded_sealed, index)}
             write_text_atomically(self.path, json.dumps(doc, indent=2) + "\n")

@@ -20,10 +20,6 @@ from typing import cast
 
 import numpy as np
 from ezdxf.document import Drawing
-from matplotlib.path import Path as PolygonPath
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, UNIT_TO_M
 from planner.errors import InputError, UsageError
@@ -67,6 +63,8 @@ def _too_dense(xy_m: np.ndarray, radius_m: np.ndarray) -> bool:
     ``DENSE_PAIRS_PER_PART`` pairs per part (counted, not listed: linear memory)."""
     if len(xy_m) <= DENSE_PAIRS_PER_PART:
         return False
+    from scipy.spatial import cKDTree  # here: a drawing refused before its parts are merged needs no SciPy
+
     tree = cKDTree(xy_m)
     reach = float(np.maximum(0.5 * radius_m, MERGE_MIN_M).max())
     return bool(tree.count_neighbors(tree, reach) > DENSE_PAIRS_PER_PART * len(xy_m))
@@ -78,6 +76,10 @@ def _clusters(xy_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
     n = len(xy_m)
     if n < 2:
         return np.zeros(n, dtype=int)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
     threshold = np.maximum(0.5 * radius_m, MERGE_MIN_M)
     pairs = cKDTree(xy_m).query_pairs(float(threshold.max()), output_type="ndarray")
     if len(pairs):
@@ -118,6 +120,8 @@ class _Parts:
 
     def figures(self, scale: float, given_m: float | None, outline: list | None) -> Figures:
         """Typical spacing, mounting height and room size if the drawing unit is ``scale`` [m]."""
+        from scipy.spatial import cKDTree
+
         spacing = height = None
         if len(self.xyz):
             xy = self.xyz[:, :2] * scale
@@ -354,6 +358,8 @@ def _outline(found: Scan, scale: float, room: str | None, where: str
     rooms = [[(x * scale, y * scale) for x, y in o.points] for o in found.outlines]
     if room is None:
         return floor_outline(rooms, lines=[[(x * scale, y * scale) for x, y in s] for s in found.segments])
+    from matplotlib.path import Path as PolygonPath
+
     pattern = room.upper()
     chosen = []
     for candidate, metres in zip(found.outlines, rooms):

@@ -13,8 +13,6 @@ from dataclasses import dataclass, field, replace
 from typing import cast
 
 import numpy as np
-from matplotlib.path import Path as _PolygonPath
-from scipy.spatial import cKDTree
 
 from planner.defaults import MAX_EXTENT_M, MAX_HEIGHT_M, MAX_LUMINAIRES, MAX_RADIUS_M, MIN_RADIUS_M
 from planner.errors import InputError
@@ -67,6 +65,9 @@ class Luminaire:
     source : dict
         Where it came from: ``{"file": ..., "handle": ..., "layer": ..., "block": ...,
         "element_id": ..., "line": ...}``; only the keys that apply are present.
+    tone_hz : float or None
+        The square-wave tone an existing luminaire already broadcasts [Hz] (a tone site, docs/tones.md),
+        or None: the planner gives it a frame ID.
     """
 
     name: str
@@ -75,6 +76,7 @@ class Luminaire:
     z: float
     radius: float = DEFAULT_RADIUS_M
     source: dict = field(default_factory=dict, compare=False)
+    tone_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,12 @@ class Layout:
         """Positions, shape (N, 3) [m]."""
         return np.array([(lum.x, lum.y, lum.z) for lum in self.luminaires], dtype=float).reshape(-1, 3)
 
+    @property
+    def tones_hz(self) -> np.ndarray | None:
+        """Each luminaire's tone, shape (N,) [Hz], on a tone site (every luminaire carries one); else None."""
+        tones = [lum.tone_hz for lum in self.luminaires]
+        return None if not tones or None in tones else np.array(tones, dtype=float)
+
     def with_note(self, note: str) -> Layout:
         return replace(self, notes=self.notes + (note,))
 
@@ -154,6 +162,7 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
     if len(set(names)) != n:
         dup = sorted(name for name, count in Counter(names).items() if count > 1)[0]
         raise InputError(f"{where}: luminaire name {dup!r} is used more than once; names must be unique")
+    check_tones_all_or_none(layout.luminaires, where)
     xy = layout.xy
     radii = np.array([lum.radius for lum in layout.luminaires])
     if not np.all(np.isfinite(xy)) or not np.all(radii > 0):
@@ -171,6 +180,8 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
         if not np.isfinite(corners).all() or np.abs(corners).max(initial=0.0) > MAX_EXTENT_M:
             raise InputError(f"{where}: the room outline has a corner that is not a number or beyond "
                              f"{MAX_EXTENT_M:g} m; fix the outline's coordinates or its units (`units`)")
+    from scipy.spatial import cKDTree  # here, not at import: reading a file and refusing it needs no scipy
+
     tree = cKDTree(xy)
     # many points and k=2: arrays (the stubs' return type also allows one point's scalars)
     dist, idx = cast("tuple[np.ndarray, np.ndarray]", tree.query(xy, k=2))
@@ -184,6 +195,17 @@ def check_layout(layout: Layout, expected: int | None = None) -> Layout:
             f"({describe(a)}; {describe(b)})"
         )
     return layout
+
+
+def check_tones_all_or_none(luminaires: tuple[Luminaire, ...], where: str) -> None:
+    """:class:`InputError` unless every luminaire carries ``tone_hz`` (an existing tone site) or none does (the
+    planner gives frame IDs): a receiver reads one kind of signal on a site (docs/tones.md)."""
+    toned = [lum for lum in luminaires if lum.tone_hz is not None]
+    if toned and len(toned) < len(luminaires):
+        bare = next(lum for lum in luminaires if lum.tone_hz is None)
+        raise InputError(f"{where}: luminaire {bare.name!r} has no tone_hz but {len(toned)} of the "
+                         f"{len(luminaires)} luminaires carry one (first {toned[0].name!r}); give every luminaire its "
+                         "tone (an existing tone site) or none (the planner then gives frame IDs)")
 
 
 def describe(lum: Luminaire) -> str:
@@ -236,7 +258,9 @@ def fill_outline(
     if count * (2 * radius_m) ** 2 > room_m2:  # even a perfect packing could not keep the discs apart
         raise InputError(f"`leds` {count}: {count:,} luminaires of radius {radius_m:g} m do not fit in the "
                          f"room's {room_m2:.1f} m2; ask for fewer (at most {int(room_m2 / (2 * radius_m) ** 2):,})")
-    polygon = _PolygonPath(local)
+    from matplotlib.path import Path as PolygonPath
+
+    polygon = PolygonPath(local)
     best = None
     for cols in range(1, count + 1):
         sx = width / cols

@@ -15,7 +15,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from matplotlib.path import Path as PolygonPath
 
 from planner.layout.model import area_m2
 
@@ -26,6 +25,8 @@ Polygon = Sequence[tuple[float, float]]
 
 
 def _inside(inner: Polygon, outer: Polygon) -> bool:
+    from matplotlib.path import Path as PolygonPath  # here: a drawing refused early needs no Matplotlib
+
     return bool(PolygonPath(np.asarray(outer, dtype=float)).contains_points(np.asarray(inner, dtype=float),
                                                                             radius=1e-9).all())
 

@@ -18,7 +18,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from planner._files import load_yaml, read_text
 from planner._schema import M, validated
-from planner.defaults import MAX_LUMINAIRES, UNIT_TO_M
+from planner.defaults import FLICKER_HZ, MAX_LUMINAIRES, UNIT_TO_M
 from planner.errors import InputError
 from planner.layout.model import DEFAULT_MOUNT_HEIGHT_M, DEFAULT_RADIUS_M, Layout, Luminaire
 
@@ -31,6 +31,16 @@ PositiveLength = Annotated[float, Field(allow_inf_nan=False, gt=0)]
 Point = Annotated[list[Length], Field(min_length=2, max_length=2)]  # [x, y]
 
 
+def _tone(hz: float) -> float:
+    if hz < FLICKER_HZ:
+        raise ValueError(f"{hz:g} Hz is below the flicker limit of {FLICKER_HZ:g} Hz (a slower square wave flickers "
+                         "visibly, IEEE 802.15.7); retune that luminaire's driver, or leave tone_hz out")
+    return hz
+
+
+Tone = Annotated[float, Field(allow_inf_nan=False, gt=0), AfterValidator(_tone)]  # [Hz], in every unit
+
+
 def _polygon(points: list[list[float]]) -> list[list[float]]:
     if len(points) < 3:
         raise ValueError(f"needs at least 3 points, got {len(points)}")
@@ -38,7 +48,8 @@ def _polygon(points: list[list[float]]) -> list[list[float]]:
 
 
 class LuminaireRow(BaseModel):
-    """One luminaire of a layout file: ``x``, ``y`` and optionally ``z``, ``radius``, ``name``; ``id`` is ignored."""
+    """One luminaire of a layout file: ``x``, ``y`` and optionally ``z``, ``radius``, ``name``, ``tone_hz`` (the
+    square-wave tone it already broadcasts [Hz]); ``id`` is ignored."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -47,6 +58,7 @@ class LuminaireRow(BaseModel):
     y: Length
     z: PositiveLength | None = None
     radius: PositiveLength | None = None
+    tone_hz: Tone | None = None
     id: Any = None  # IDs are the planner's to give
 
 
@@ -79,7 +91,7 @@ def _checked(model: type[M], doc: object, where: str, *, strict: bool) -> M:
 def _luminaire(row: LuminaireRow, k: int, scale: float, defaults: dict, source: dict) -> Luminaire:
     return Luminaire((row.name or "").strip() or f"L{k + 1:04d}", row.x * scale, row.y * scale,
                      row.z * scale if row.z is not None else defaults["z"],
-                     row.radius * scale if row.radius is not None else defaults["radius"], source)
+                     row.radius * scale if row.radius is not None else defaults["radius"], source, row.tone_hz)
 
 
 def _defaults(mount_height_m: float | None, radius_m: float | None, height: float | None, radius: float | None,

@@ -27,16 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.camera.model import Camera, disc_image_rows
-from planner.defaults import DRIVER_MAX_HZ, MAX_VIDEO_FRAMES, VIDEO_FPS
+from planner.defaults import DRIVER_MAX_HZ, FLICKER_HZ, MAX_VIDEO_FRAMES, VIDEO_FPS
 from planner.errors import PlanningError
 from planner.layout.model import area_m2
 from planner.modulation.frame import LineCode, frame_chips
 from planner.modulation.multiframe import MAX_RATE_HZ, VideoFit, fit_video, rows_needed
 from planner.verify.windows import PoseSample
-
-FLICKER_HZ = 200.0
-"""Lowest allowed repetition of the slowest on/off cycle [Hz] (IEEE 802.15.7's flicker guidance)."""
-
 
 ROWS_PER_CHIP = 2.0
 """Image rows a chip must span to be read."""

@@ -79,6 +79,7 @@ class Entry(_Section):
     region: Count
     id: Annotated[Count, Field(ge=1)]
     codeword: Count | None = None
+    tone_hz: Positive | None = None  # the tone it broadcasts on a tone site [Hz]
     frame: Frame | None = None
     source: dict[str, Any] = {}
 
@@ -227,6 +228,10 @@ class PlanFile(_Section):
             uses = Counter(ids)
             twice = next(e for e in self.luminaires if uses[e.id] > 1)
             raise ValueError(f"luminaire {twice.name!r}'s id {twice.id} is used more than once in a unique-ID plan")
+        toned = sum(e.tone_hz is not None for e in self.luminaires)
+        if toned not in (0, len(names)) or (toned and any(e.frame is not None for e in self.luminaires)):
+            raise ValueError(f"{toned} of {len(names)} luminaires have a tone_hz: all or none must, and a tone "
+                             "site's luminaires have no frame")
         framed = sum(e.frame is not None for e in self.luminaires)
         if framed not in (0, len(names)):
             raise ValueError(f"{framed} of {len(names)} luminaires have a frame: all or none must")
@@ -309,11 +314,13 @@ class PlanFile(_Section):
 
 
 def luminaires_digest(scheme: str, luminaires: list) -> str:
-    """Short hash of what a verdict depends on: the scheme and each luminaire's name, position, radius and ID
-    (entries as mappings or :class:`Entry`); recorded with the verdict, compared on reading."""
+    """Short hash of what a verdict depends on: the scheme and each luminaire's name, position, radius, ID and
+    tone where it has one (entries as mappings or :class:`Entry`); recorded with the verdict, compared on reading."""
     def row(e: Any) -> list:
-        v = e if isinstance(e, dict) else {k: getattr(e, k) for k in ("name", "x", "y", "z", "radius", "id")}
-        return [v["name"], float(v["x"]), float(v["y"]), float(v["z"]), float(v["radius"]), int(v["id"])]
+        v = e if isinstance(e, dict) else {k: getattr(e, k) for k in ("name", "x", "y", "z", "radius", "id", "tone_hz")}
+        tone = v.get("tone_hz")
+        return [v["name"], float(v["x"]), float(v["y"]), float(v["z"]), float(v["radius"]), int(v["id"]),
+                *([float(tone)] if tone is not None else [])]
 
     text = json.dumps([scheme, *(row(e) for e in luminaires)], separators=(",", ":"), ensure_ascii=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]

@@ -19,6 +19,7 @@ from planner.plan.file import FORMAT, luminaires_digest
 
 if TYPE_CHECKING:  # types only: loading a plan needs none of the stages
     from planner.advice.advise import Advice
+    from planner.advice.tones import ToneAudit
     from planner.camera.model import Camera
     from planner.codes.assignment import Assignment
     from planner.codes.check_bits import CheckCode
@@ -48,6 +49,7 @@ class Plan:
     advice: Advice | None = None
     receiver: ReceiverChoice | None = None
     no_frames: str | None = None  # why the plan has no frames (modulation None although planned with them)
+    tones: ToneAudit | None = None  # an existing tone site's audit (docs/tones.md); it has no frames
 
     def entries(self) -> list[dict]:
         """One mapping per luminaire, as in ``plan.yaml``."""
@@ -63,6 +65,7 @@ class Plan:
                 "parity": "odd" if self.graph.odd[k] else "even",
                 "region": int(a.regions[k]),
                 "id": int(a.ids[k]),
+                **({"tone_hz": float(lum.tone_hz)} if lum.tone_hz is not None else {}),
                 **({"codeword": int(self.check.codewords[a.ids[k] - 1])}
                    if self.check is not None and self.check.distance > 1 else {}),
                 **({"frame": {"chips": self.modulation.frames[k], "chip_rate_hz": self.modulation.timing.chip_rate_hz,
@@ -124,6 +127,7 @@ def plan_document(plan: Plan, source_sha256: str = "") -> dict:
         "advice": plan.advice.summary() if plan.advice is not None else None,
         "modulation": plan.modulation.summary() if plan.modulation is not None else None,
         **({"no_frames": plan.no_frames} if plan.no_frames else {}),
+        **({"tones": plan.tones.summary([lum.name for lum in lay.luminaires])} if plan.tones is not None else {}),
         "accuracy": plan.accuracy.summary() if plan.accuracy is not None else None,
         "outline": _round_pairs(lay.outline),
         "luminaire_count": len(lay.luminaires),  # written before the list: a file cut short is caught

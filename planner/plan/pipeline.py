@@ -11,7 +11,7 @@ import os
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +91,10 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
     one with fewer bits that has no ambiguous pose (the paper's on a tie); if
     neither verifies, one unique ID per luminaire. ``timings`` records each stage's time.
     """
+    if layout.tones_hz is not None:  # before the frame options' checks, whose advice does not apply to it
+        from planner.plan.tone_site import check_tone_options
+
+        check_tone_options(layout.source_path, options.scheme, options.verify)
     _check_options(options)
     clock = timings or Timings()
     clock.stage("pose sampling", f"{len(layout.luminaires)} luminaires")
@@ -102,17 +106,24 @@ def make_plan(layout: Layout, options: PlanOptions = PlanOptions(), timings: Tim
     sample = PoseSample.draw(area, xyz, radii, cam, per_m2, options.seed)  # every stage takes a prefix
     job = Job(xyz, radii, layout.outline, graph, cam, sample, {}, options.scheme, options.seed, options.time_budget,
               options.poses_per_m2, options.tolerance_m, options.install_tolerance_m, options.verify, options.runner)
-    clock.stage("IDs and verification", f"{options.scheme} scheme, {options.receiver} receiver")
-    (assignment, verification, considered), receiver = choose(job, options.receiver, options.accelerometer_sigma_deg)
+    tones, audit = layout.tones_hz, None
+    clock.stage("IDs and verification", "kept tones" if tones is not None else f"{options.scheme} scheme")
+    if tones is not None:  # an existing tone site: audited, no frames (docs/tones.md)
+        from planner.plan.tone_site import keep_tones
+
+        (assignment, verification, considered), receiver, audit = keep_tones(
+            layout, tones, job, options.receiver, options.accelerometer_sigma_deg, options.driver_max_hz)
+    else:
+        (assignment, verification, considered), receiver = choose(job, options.receiver, options.accelerometer_sigma_deg)
     mode = receiver.mode if receiver is not None else PAPER
     clock.stage("frames")
-    check = check_code(assignment.max_id, assignment.bits, options.check_distance)
-    modulation, no_frames = _frames(assignment, check, mode, mode.smallest_image_rows(xyz, radii, cam, sample),
-                                    options)
+    check = check_code(assignment.max_id, assignment.bits, options.check_distance if tones is None else 1)
+    modulation, no_frames = (None, None) if tones is not None else _frames(
+        assignment, check, mode, mode.smallest_image_rows(xyz, radii, cam, sample), options)
     accuracy = _accuracy(layout, radii, mode, sample, options, clock)
     advice = _advice(layout, radii, mode, verification, options, clock)
     return Plan(layout, graph, assignment, cam, verification, considered, check, accuracy, modulation, advice, receiver,
-                no_frames)
+                no_frames, audit)
 
 
 def _check_options(options: PlanOptions) -> None:
@@ -167,11 +178,13 @@ def _advice(layout: Layout, radii: np.ndarray, mode: Receiver, verification: Ver
     clock.stage("advice")
     filled = all(lum.source.get("generated") == "lattice" for lum in layout.luminaires)
     share = [verification.count(k) / max(verification.poses, 1) for k in (TOO_FEW, AMBIGUOUS)]
-    frames = FrameLimits(options.line_code, options.check_distance, options.driver_max_hz, options.video_fps,
-                         options.max_video_frames, options.mcu_clock_hz)  # the changes' frames must fit too
-    return advise(Site(layout.xyz, radii, layout.outline, options.camera, mode.name, filled), verification.coverage,
-                  *share, goal=options.coverage_goal, seed=options.seed, frames=frames,
-                  allow_unusable=options.allow_unusable)
+    frames = None if layout.tones_hz is not None else FrameLimits(  # the changes' frames must fit too
+        options.line_code, options.check_distance, options.driver_max_hz, options.video_fps, options.max_video_frames,
+        options.mcu_clock_hz)
+    advice = advise(Site(layout.xyz, radii, layout.outline, options.camera, mode.name, filled), verification.coverage,
+                    *share, goal=options.coverage_goal, seed=options.seed, frames=frames,
+                    allow_unusable=options.allow_unusable)
+    return replace(advice, tone_site=layout.tones_hz is not None)
 
 
 def default_outdir(layout_path: str | Path) -> Path:

@@ -53,6 +53,9 @@ class Codec:
 def codec(plan: PlanFile, where: str) -> Codec:
     """The plan's own modulation; :class:`InputError` when it has none or this version would make other frames."""
     m = plan.modulation
+    if m is None and (plan.model_extra or {}).get("tones"):
+        raise InputError(f"{where}: a tone site's plan (docs/tones.md) has no frames to check or rebuild: its tones "
+                         "are the layout's, played by drivers configured outside vlp-plan; run vlp-plan on the layout")
     if m is None:
         raise InputError(f"{where}: the plan has no modulation section, so no frames to check or rebuild; "
                          "make it with vlp-plan LAYOUT (without --no-firmware)")

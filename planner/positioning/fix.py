@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planner.camera.ellipse import Ellipse, centre_and_shape
 from planner.camera.model import Camera, disc_conics, rotation_from_angles
@@ -103,6 +102,8 @@ def residuals_batch(x: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii:
                      centres: np.ndarray, shapes: np.ndarray, camera: Camera) -> np.ndarray:
     """Ellipse residuals for B poses ``x`` (B x 6): ``rotation`` turned by the rotation vector
     ``x[:3]`` (camera frame), camera centre ``x[3:]`` [m]; LEDs not imaged as ellipses get a large residual."""
+    from scipy.spatial.transform import Rotation  # here, not at import: commands that never locate skip loading it
+
     rot = rotation @ Rotation.from_rotvec(x[:, :3]).as_matrix()  # (B, 3, 3) camera-to-site
     rel = xyz[None] - x[:, None, 3:]
     c, m, ok = centre_and_shape(disc_conics(x[:, 3:], rot, np.broadcast_to(xyz, rel.shape), radii, camera))

@@ -18,8 +18,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from planner.camera.ellipse import Ellipse
 from planner.camera.model import Camera
@@ -70,6 +68,9 @@ def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, 
     their standard deviations under that budget (:mod:`planner.positioning.uncertainty`), robust beyond
     :data:`~planner.positioning.perspective.ROBUST_SIGMAS`. Returns the position, rotation and the
     ellipses' RMS residual, unweighted [px]."""
+    from scipy.optimize import least_squares  # here, not at import: commands that never locate skip loading it
+    from scipy.spatial.transform import Rotation
+
     undistorted, ideal = ideal_ellipses(ellipses, camera)
     centres, shapes = observed(undistorted)
     g = np.asarray(gravity_cam, float) / np.linalg.norm(gravity_cam)

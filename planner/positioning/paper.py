@@ -12,7 +12,6 @@ from __future__ import annotations
 from itertools import combinations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from planner.camera.ellipse import Ellipse
 from planner.camera.model import Camera
@@ -61,6 +60,8 @@ def trilaterate_least_squares(leds_m: np.ndarray, d_m: np.ndarray, start: np.nda
     Returns the position and the RMS residual of the distances [m]. Starts below the
     LEDs' centroid (or at ``start``), so the solution under the ceiling is found.
     """
+    from scipy.optimize import least_squares  # here, not at import: commands that never locate skip loading it
+
     leds_m, d_m = np.asarray(leds_m, float), np.asarray(d_m, float)
     if len(leds_m) < 3:
         raise PositioningError(f"{len(leds_m)} LEDs: a position needs at least three")

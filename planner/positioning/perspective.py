@@ -16,10 +16,7 @@ this with the paper's weak-perspective method.
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from planner.camera.ellipse import Ellipse
 from planner.camera.model import Camera
@@ -47,6 +44,8 @@ three standard deviations pulls the position less than its square would."""
 
 def p3p_poses(xyz3: np.ndarray, centres3_px: np.ndarray, camera: Camera) -> list[tuple[np.ndarray, np.ndarray]]:
     """P3P's solutions as (camera centre [m], camera-to-site rotation), camera below the LEDs."""
+    import cv2  # here, not at import: commands that never locate skip loading it
+
     n, rvecs, tvecs = cv2.solveP3P(np.ascontiguousarray(xyz3, dtype=np.float64),
                                    np.ascontiguousarray(centres3_px, dtype=np.float64),
                                    camera.intrinsics, None, flags=cv2.SOLVEPNP_P3P)
@@ -97,6 +96,9 @@ def refine(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, radii: n
 
     The Jacobian is taken by forward differences in one batched evaluation.
     """
+    from scipy.optimize import least_squares  # here, not at import: commands that never locate skip loading it
+    from scipy.spatial.transform import Rotation
+
     args = (rotation, xyz, radii, centres, shapes, camera)
     w = 1.0 if sigmas is None else 1.0 / sigmas
     steps = np.diag(np.r_[np.full(3, 1e-7), np.full(3, 1e-7 * max(1.0, float(np.abs(position).max())))])

@@ -175,6 +175,12 @@ def summary(plan: PlanFile, stops: list[Stop]) -> list[tuple[str, str]]:
                                    + (f"; read over {mod.video_frames} consecutive video frames at "
                                       f"{mod.video_fps:g} fps (multi-frame: hold the phone still)"
                                       if mod.video_frames > 1 else "")))
+    tones = (plan.model_extra or {}).get("tones")
+    if tones:  # an existing tone site (docs/tones.md): audited, nothing to flash
+        from planner.advice.tones import tone_lines
+
+        rows.append(("tones", "; ".join(line.strip() for line in tone_lines(tones)).removeprefix("tones").strip()))
+        return rows
     done = sum(s.status == "verified" for s in stops)
     failed = sum(s.status == "failed" for s in stops)
     rows.append(("flashing", f"{done} of {len(stops)} drivers verified" + (f", {failed} failed" if failed else "")))

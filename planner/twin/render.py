@@ -136,20 +136,22 @@ def _unit_circle(count: int = 128) -> np.ndarray:
     return np.column_stack([np.cos(phi), np.sin(phi)])
 
 
-def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate_hz: float, camera: Camera,
+def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate_hz: float | np.ndarray, camera: Camera,
                  position: np.ndarray, rotation: np.ndarray, sensor: Sensor = Sensor(),
                  rng: np.random.Generator | None = None, phase_chips: np.ndarray | None = None,
                  gain: np.ndarray | None = None) -> Frame:
     """The frame the camera at ``position`` [m] with camera-to-site ``rotation`` captures.
 
     ``chips`` is every luminaire's frame ('0'/'1' per chip), ``chip_rate_hz`` the site's
-    chip rate; ``rng`` draws the phases, brightness factors and noise (seeded for tests).
+    chip rate (or each luminaire's, (N,): a tone site, :func:`render_tones`); ``rng`` draws
+    the phases, brightness factors and noise (seeded for tests).
     ``phase_chips`` (each frame's phase at row 0's exposure start) and ``gain`` (each LED's
     brightness factor), when given, are used instead of drawn: consecutive video frames.
     """
     rng = rng or np.random.default_rng()
     height, width = camera.height_px, camera.width_px
     n = len(xyz)
+    rates = np.broadcast_to(np.asarray(chip_rate_hz, dtype=float), (n,))
     if phase_chips is None:
         phase_chips = rng.uniform(0.0, [len(c) for c in chips]) if n else np.zeros(0)
     phase = phase_chips
@@ -184,7 +186,7 @@ def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate
             cover = np.nan_to_num(_coverage_at(iu - centres[k][0], iv - centres[k][1], np.linalg.inv(m2)))
         else:
             cover = _coverage(np.arange(u0, u1 + 1, dtype=float), rows.astype(float), centres[k], np.linalg.inv(m2))
-        drive = exposure_means(chips[k], phase[k], rows * camera.row_time_s, sensor.exposure_s, chip_rate_hz,
+        drive = exposure_means(chips[k], phase[k], rows * camera.row_time_s, sensor.exposure_s, float(rates[k]),
                                sensor.off_level)
         img[v0:v1 + 1, u0:u1 + 1] += (sensor.led_dn * gain[k]) * cover * drive[:, None].astype(np.float32)
         drawn.append(k)
@@ -196,3 +198,22 @@ def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate
     noise *= np.sqrt(sigma, out=sigma)
     img += noise
     return Frame(np.clip(np.rint(img, out=img), 0, 255, out=img).astype(np.uint8), np.array(drawn, int), phase)
+
+
+def render_tones(xyz: np.ndarray, radii: np.ndarray, tones_hz: np.ndarray, camera: Camera, position: np.ndarray,
+                 rotation: np.ndarray, sensor: Sensor = Sensor(), rng: np.random.Generator | None = None,
+                 glow: tuple[float, float] | None = None) -> Frame:
+    """The frame of a tone site (docs/tones.md): each LED a square wave at its tone [Hz], i.e. the frame ``10``
+    played at twice the tone, from a random phase. ``glow`` (radius factor, brightness share) adds a concentric,
+    dimmer disc playing the same wave: a small chip (often saturated) in the glow of its diffuser."""
+    rng = rng or np.random.default_rng()
+    n = len(xyz)
+    rates = 2.0 * np.asarray(tones_hz, dtype=float)
+    phase = rng.uniform(0.0, 2.0, n)
+    gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
+    if glow is None:
+        return render_frame(xyz, radii, ["10"] * n, rates, camera, position, rotation, sensor, rng, phase, gain)
+    frame = render_frame(np.vstack([xyz, xyz]), np.r_[radii, glow[0] * np.asarray(radii)], ["10"] * (2 * n),
+                         np.r_[rates, rates], camera, position, rotation, sensor, rng, np.r_[phase, phase],
+                         np.r_[gain, glow[1] * gain])
+    return Frame(frame.image, np.unique(frame.drawn % n), phase)

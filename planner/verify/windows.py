@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError, cKDTree
-from scipy.stats import qmc
 
 from planner.camera.model import Camera, Poses, project_discs
 from planner.defaults import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
@@ -65,6 +64,8 @@ def sample_poses(area: np.ndarray, camera: Camera, per_m2: float = POSES_PER_M2,
     polygon = PolygonPath(area)
     lo, hi = area.min(axis=0), area.max(axis=0)
     wanted = pose_count(area, per_m2)
+    from scipy.stats import qmc  # here: scipy.stats alone costs about 0.4 s to import, and only sampling needs it
+
     sobol = qmc.Sobol(d=6, scramble=True, seed=seed)
     chunks, have = [], 0
     while have < wanted:  # draw in power-of-two chunks (Sobol balance), keep those inside the area

@@ -18,14 +18,14 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import SITE_KEY, grid32_copy
 from planner.firmware.image import parse_config_image
 from planner.plan.file import load_plan, plan_from_document
 from planner.plan.rebuild import codec, verify_plan_file
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
 BIN = Path(sys.executable).parent  # the installed console scripts
-KEY = bytes(range(32))
+KEY = SITE_KEY
 FIRST = "R01C01"
 
 
@@ -44,12 +44,9 @@ def _edit(text: str, new_id: int) -> str:
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> dict:
     """grid-32 planned (no maps, no report), and one edit of its first id that verifies and one that does not."""
-    from planner.cli.plan import main as plan_main
-
     base = tmp_path_factory.mktemp("loop")
     (base / "key").write_text(KEY.hex())
-    assert plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "planned"), "--no-map", "--no-report",
-                      "--json", "--key-file", str(base / "key")]) == 0
+    grid32_copy(tmp_path_factory, base / "planned", sealed=True)  # planned once per run (tests/flash share it)
     text = (base / "planned" / "plan.yaml").read_text()
     plan = load_plan(base / "planned" / "plan.yaml")
     old = int(plan.ids[0])

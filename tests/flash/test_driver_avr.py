@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from conftest import ROOT
+from conftest import SITE_KEY, grid32_copy
 from planner.decode.image import FrameFormat
 from planner.errors import InputError
 from planner.firmware.image import CRC_OFFSET, SIGNATURE_OFFSET, config_image
@@ -56,7 +56,7 @@ from planner.plan.file import load_plan
 pytestmark = pytest.mark.needs_avr
 
 BIN = Path(sys.executable).parent  # the installed console scripts
-KEY = bytes(range(32))
+KEY = SITE_KEY
 BAUD = 250_000  # the firmware's line rate (exact at 16 MHz)
 RETRIES = 12  # this file's own requests: the emulated MCUs share two cores with the rest of the suite
 EMULATOR_SLACK_MS = 250
@@ -68,13 +68,10 @@ NAMES = ["R01C01", "R01C02", "R01C03", "R01C04", "R01C05", "R01C06"]
 @pytest.fixture(scope="module")
 def plans(tmp_path_factory) -> Path:
     """grid-32 planned twice: ``a`` and its re-plan ``b`` (another mounting height); read only."""
-    from planner.cli.plan import main as plan_main
-
     base = tmp_path_factory.mktemp("avr-plans")
     (base / "key").write_text(KEY.hex())
     for name, extra in (("a", []), ("b", ["--height", "2.4"])):  # sealed: vlp-flash flashes no other plan
-        plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / name), "--no-map", "--no-report",
-                   "--json", "--key-file", str(base / "key"), *extra])
+        grid32_copy(tmp_path_factory, base / name, *extra, sealed=True)  # planned once per run, for tests/flash
     (base / "map.csv").write_text("".join(f"{name},{k + 1}\n" for k, name in enumerate(NAMES)))
     return base
 

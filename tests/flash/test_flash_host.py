@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from conftest import ROOT
+from conftest import ROOT, SITE_KEY, grid32_copy
 from planner.cli.flash import console_main, shown_port
 from planner.errors import UsageError
 from planner.firmware.image import CRC_OFFSET, MAX_IMAGE_VERSION, SIGNATURE_OFFSET, config_image, parse_config_image
@@ -28,7 +28,7 @@ from planner.flash.sim import protocol_sim
 from planner.flash.sim.driver import Flash, SimulatedDriver
 
 BIN = Path(sys.executable).parent  # the installed console scripts
-KEY = bytes(range(32))
+KEY = SITE_KEY
 NAMES32 = [f"R{r:02d}C{c:02d}" for r in range(1, 5) for c in range(1, 9)]  # grid-32 in plan order
 
 
@@ -43,13 +43,10 @@ def site(tmp_path_factory, plan512_dir):
 @pytest.fixture(scope="module")
 def plans(tmp_path_factory) -> Path:
     """grid-32 planned twice: ``a``, and its re-plan ``b`` (another height, so another plan hash); read only."""
-    from planner.cli.plan import main as plan_main
-
     base = tmp_path_factory.mktemp("plans")
     (base / "key").write_text(KEY.hex())
     for name, extra in (("a", []), ("b", ["--height", "2.4"])):  # sealed: vlp-flash flashes no other plan
-        plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / name), "--no-map", "--no-report",
-                   "--json", "--key-file", str(base / "key"), *extra])
+        grid32_copy(tmp_path_factory, base / name, *extra, sealed=True)  # planned once per run, for tests/flash
     return base
 
 

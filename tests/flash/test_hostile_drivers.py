@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT
+from conftest import SITE_KEY, grid32_copy
 from planner.cli.driver_sim import serve
 from planner.cli.flash import console_main
 from planner.firmware.image import config_image
@@ -24,7 +24,7 @@ from planner.flash.sim.driver import SimulatedDriver, _Refuse
 from planner.flash.wire import BEGIN_REQUEST, WRITE_REPLY, Command, Deframer, Hello, Packet, Status, decode, encode
 
 BIN = Path(sys.executable).parent  # the installed console scripts
-KEY = bytes(range(32))
+KEY = SITE_KEY
 NAMES = ["R01C01", "R01C02", "R01C03"]
 PLAN_IMAGE = config_image("L1", 5, "0111000110011010", 12600.0, "0123456789abcdef")
 
@@ -112,12 +112,9 @@ def _bus(behaviour: str, plans: Path) -> SimBus:
 
 @pytest.fixture(scope="module")
 def plans(tmp_path_factory) -> Path:
-    from planner.cli.plan import main as plan_main
-
     base = tmp_path_factory.mktemp("hostile-plans")
     (base / "key").write_text(KEY.hex())
-    plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(base / "a"), "--no-map", "--no-report", "--json",
-               "--key-file", str(base / "key")])  # sealed: vlp-flash flashes no other plan
+    grid32_copy(tmp_path_factory, base / "a", sealed=True)  # sealed: vlp-flash flashes no other plan
     return base
 
 

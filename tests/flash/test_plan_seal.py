@@ -68,8 +68,11 @@ def test_the_seal_is_beside_the_plan_and_the_plan_text_is_the_same_with_or_witho
     assert text == (site / "unsealed" / "plan.yaml").read_text()  # its hash, in every image, needs no key
     assert not (site / "unsealed" / "plan.yaml.seal").exists()
     seal = (site / "sealed" / "plan.yaml.seal").read_text()
-    assert seal == seal_text(KEY, text) and seal.splitlines()[0] == "format: vlp-plan-seal/1"
-    assert seal.splitlines()[2] == f"hmac_sha256: {plan_mac(KEY, text)}"
+    lines = seal.splitlines()
+    assert lines[0] == "format: vlp-plan-seal/2" and re.fullmatch(r"sealed: \d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", lines[2])
+    sealed = lines[2].split()[1]  # the plan's generation, under the MAC
+    assert seal == seal_text(KEY, text, sealed) and lines[3] == f"hmac_sha256: {plan_mac(KEY, text, sealed)}"
+    assert plan_mac(KEY, text, sealed) not in {plan_mac(KEY, text), plan_mac(KEY, text, "2020-01-01T00:00:00Z")}
     # the plan key is none of the others: a driver key or a journal seal never seals a plan
     assert plan_key(KEY) not in {journal_key(KEY), KEY, *(driver_key(KEY, s) for s in ("SIM-000001", "plan"))}
     assert plan_mac(OTHER_KEY, text) != plan_mac(KEY, text)
@@ -124,7 +127,7 @@ def _forge_seal(kind: str, forged: Path, site: Path) -> None:
 SEALS = {"none": "not sealed (no plan.yaml.seal beside it)",
          "copied": "its seal plan.yaml.seal is of plan ",
          "other key": "its seal does not check under this site key (forged, or sealed with another site key)",
-         "garbage": "its seal plan.yaml.seal is not a vlp-plan-seal/1 file"}
+         "garbage": "its seal plan.yaml.seal is not a vlp-plan-seal/2 file"}
 
 
 @pytest.mark.parametrize("kind", list(SEALS))

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import grid32_copy
 from planner.camera.model import rotation_from_angles
 from planner.cli.locate import console_main as locate_main
 from planner.modulation.frame import frame_chips, line_code
@@ -33,12 +33,8 @@ WRONG_POSE = (2.4, 0.9, 0.7, 25.0, 200.0, 5.0)
 @pytest.fixture(scope="module")
 def plan(tmp_path_factory):
     """``layouts/grid-32.yaml`` planned (the paper's 32 LEDs, 4-bit window IDs, Manchester frames)."""
-    from planner.cli.plan import main as plan_main
-
-    out = tmp_path_factory.mktemp("grid32")
-    assert plan_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-map", "--no-report",
-                      "--error-poses-per-m2", "0", "--json"]) == 0  # vlp-report writes the reports the tests read
-    return out / "plan.yaml"
+    # no report: vlp-report writes the reports the tests read; planned once per run (tests/test_plan_file.py's too)
+    return grid32_copy(tmp_path_factory, tmp_path_factory.mktemp("grid32") / "plan", "--error-poses-per-m2", "0")
 
 
 def _srgb_encode(linear: np.ndarray) -> np.ndarray:

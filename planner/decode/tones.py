@@ -1,0 +1,175 @@
+"""Read a tone LED's stripe frequency from a rolling-shutter image, to a fraction of a row (docs/tones.md).
+
+A square wave of ``f`` [Hz] draws stripes of ``f t_r`` cycles per row (``t_r`` the row time). On a small
+LED (a saturated core in a glow, 30-60 rows, 1.5-5 periods) a halfway threshold cuts the ramping outer
+stripes short and reads 3-38 % too high (issue 37). This reader uses every row the LED lights, glow
+included, and no threshold:
+
+1. **LEDs**: pixels above the dark level (the image's median) by ``LIT_DN``: the glow, not the core;
+   gaps closed vertically over half the longest period asked for; connected components of at least
+   ``MIN_LED_PX`` not cut by the image's border.
+2. **Profile**: each row's light above the dark level summed over the LED's pixels in that row, every row
+   of the LED: a window wider than the saturated core. Columns clipped over ``SATURATED_ROWS`` rows running
+   (a saturated core) and ``CORE_MARGIN_PX`` beside them are left out while other columns remain.
+3. **Frequency**: the model ``width(v) (a + sum_h b_h cos(2 pi h c v) + c_h sin(2 pi h c v))``,
+   ``width(v)`` the LED's pixels in row ``v`` (its envelope). The periodogram's peak over ``1 / L .. 1 / 4``
+   cycles per row (``L`` the profile's rows), one harmonic, on a grid 8 times finer than an FFT's bins,
+   with the offset fitted at each trial (a DC term leaks into the first bins of a plain FFT over 1.5
+   periods); then refined with ``HARMONICS`` harmonics (clipping and blur make the stripes uneven).
+4. **Uncertainty**: the fit's standard error, ``s^2 (J^T J)^-1`` at the optimum (``s^2`` the residual
+   variance, ``J`` the model's Jacobian). Rows blurred together are not independent, so it is a lower
+   bound (about half the error on saturated chips in a glow, docs/tones.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+LIT_DN = 25.0
+"""A pixel belongs to an LED (its glow included) this far above the image's dark level [DN]."""
+
+MIN_LED_PX = 40
+"""Smallest LED kept [px]."""
+
+SATURATED_DN = 255
+"""A pixel at this level [DN of 255] is clipped."""
+
+SATURATED_ROWS = 4
+"""A column of the LED clipped over this many rows in a row crosses the saturated core (noise clips single
+pixels of a bright LED, a saturated core whole stripes): left out while others are not."""
+
+CORE_MARGIN_PX = 3
+"""Columns beside a clipped one left out too: the saturated core's blurred rim."""
+
+HARMONICS = 3
+"""Harmonics of the refined fit: a clipped, blurred square wave is no sine."""
+
+
+@dataclass(frozen=True)
+class ToneReading:
+    """One LED's tone: ``tone_hz`` and its standard error ``sigma_hz`` [Hz], over ``rows`` rows
+    (``periods`` periods), from the LED at ``box`` (u0, v0, u1, v1) [px, inclusive]."""
+
+    tone_hz: float
+    sigma_hz: float
+    rows: int
+    periods: float
+    box: tuple[int, int, int, int]
+
+
+def find_tone_leds(image: np.ndarray, row_time_s: float, lowest_hz: float) -> list[tuple[np.ndarray, tuple]]:
+    """Each LED of ``image`` (8-bit, rows x columns): its closed mask and box (u0, v0, u1, v1); the gaps between
+    stripes of tones down to ``lowest_hz`` [Hz] are closed."""
+    dark = float(np.median(image))
+    lit = (image.astype(np.float32) > dark + LIT_DN).astype(np.uint8)
+    gap = max(1, int(np.ceil(0.5 / (lowest_hz * row_time_s))))  # half the longest period [rows]
+    closed = cv2.morphologyEx(lit, cv2.MORPH_CLOSE, np.ones((gap + 1, 1), np.uint8))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    out = []
+    for k in range(1, count):
+        u0, v0, w, h, area = (int(x) for x in stats[k])
+        whole = u0 > 0 and v0 > 0 and u0 + w < image.shape[1] and v0 + h < image.shape[0]  # not cut by the border
+        if area >= MIN_LED_PX and whole:
+            out.append((labels[v0:v0 + h, u0:u0 + w] == k, (u0, v0, u0 + w - 1, v0 + h - 1)))
+    return out
+
+
+def _design(cycles: float, rows: np.ndarray, width: np.ndarray, harmonics: int) -> np.ndarray:
+    """Columns of the model ``width(v) (a + sum_h b_h cos(2 pi h c v) + c_h sin(2 pi h c v))``."""
+    phase = 2 * np.pi * cycles * rows
+    cols = [np.ones_like(rows)]
+    for h in range(1, harmonics + 1):
+        cols += [np.cos(h * phase), np.sin(h * phase)]
+    return np.column_stack(cols) * width[:, None]
+
+
+def _rss(cycles: float, rows: np.ndarray, width: np.ndarray, profile: np.ndarray, harmonics: int) -> float:
+    x = _design(cycles, rows, width, harmonics)
+    coef, *_ = np.linalg.lstsq(x, profile, rcond=None)
+    r = profile - x @ coef
+    return float(r @ r)
+
+
+def stripe_frequency(profile: np.ndarray, width: np.ndarray) -> tuple[float, float]:
+    """The stripes' frequency [cycles per row] of a row profile (each row's light above the dark level, summed over
+    the LED's ``width`` pixels in it) and its standard error (module notes, 3-4)."""
+    n = len(profile)
+    rows = np.arange(n, dtype=float) - (n - 1) / 2
+    step = 1.0 / (8 * n)
+    grid = np.arange(1.0 / n, 0.25 + step, step)
+    rss = np.array([_rss(c, rows, width, profile, 1) for c in grid])
+    best = float(grid[int(np.argmin(rss))])
+    found = minimize_scalar(_rss, bounds=(max(best - 2 * step, 0.5 / n), best + 2 * step), method="bounded",
+                            args=(rows, width, profile, HARMONICS), options={"xatol": 1e-7})
+    cycles = float(found.x)
+    x = _design(cycles, rows, width, HARMONICS)
+    coef, *_ = np.linalg.lstsq(x, profile, rcond=None)
+    phase = 2 * np.pi * cycles * rows
+    slope = width * sum(2 * np.pi * h * rows * (-coef[2 * h - 1] * np.sin(h * phase) + coef[2 * h] * np.cos(h * phase))
+                        for h in range(1, HARMONICS + 1))
+    jac = np.column_stack([x, slope])
+    s2 = float(found.fun) / max(n - jac.shape[1], 1)
+    cov = s2 * np.linalg.pinv(jac.T @ jac)
+    return cycles, float(np.sqrt(max(cov[-1, -1], 0.0)))
+
+
+def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], row_time_s: float,
+              dark_dn: float) -> ToneReading:
+    """The tone of the LED at ``box`` whose closed mask is ``mask`` (:func:`find_tone_leds`) [Hz]: each row's light
+    above ``dark_dn`` summed over the mask, every row of the mask, columns through a saturated core left out
+    (module notes, 2)."""
+    u0, v0, u1, v1 = box
+    pixels = image[v0:v1 + 1, u0:u1 + 1]
+    full = pixels >= SATURATED_DN
+    run = np.ones(full[SATURATED_ROWS - 1:].shape, dtype=bool)
+    for k in range(SATURATED_ROWS):
+        run &= full[k:len(full) - SATURATED_ROWS + 1 + k]
+    clipped = run.any(axis=0)
+    near = np.convolve(clipped, np.ones(2 * CORE_MARGIN_PX + 1), mode="same") > 0  # and the core's blurred rim
+    clear = ~near  # the glow beside the core
+    keep = mask & clear[None, :] if clear.any() else mask
+    block = np.clip(pixels.astype(float) - dark_dn, 0.0, None)
+    width = keep.sum(axis=1).astype(float)
+    profile = (block * keep).sum(axis=1)
+    cycles, sigma = stripe_frequency(profile, width)
+    return ToneReading(cycles / row_time_s, sigma / row_time_s, len(profile), cycles * len(profile), box)
+
+
+def read_tones(image: np.ndarray, row_time_s: float, lowest_hz: float) -> list[ToneReading]:
+    """Every LED's tone in ``image``, tones down to ``lowest_hz`` [Hz], top to bottom then left to right."""
+    dark = float(np.median(image))
+    found = [read_tone(image, mask, box, row_time_s, dark) for mask, box in find_tone_leds(image, row_time_s, lowest_hz)]
+    return sorted(found, key=lambda r: (r.box[1], r.box[0]))
+
+
+@dataclass(frozen=True)
+class ToneMatch:
+    """The plan tone a reading is matched to (``index``), its probability among the plan's tones, and how many
+    standard deviations the reading lies from it (``z``); ``index`` None when no tone lies within ``MAX_Z``."""
+
+    index: int | None
+    probability: float
+    z: float
+
+
+MAX_Z = 4.0
+"""A reading farther than this many standard deviations from every plan tone is matched to none."""
+
+
+def match_tone(reading: ToneReading, tones_hz: np.ndarray) -> ToneMatch:
+    """The plan tone most likely to have drawn ``reading``, by likelihood, not by rounding to the nearest: each tone
+    ``f_k`` reads within ``f_k (1 +- 1/R)`` (docs/tones.md; a uniform spread, sigma ``f_k / (R sqrt 3)``) plus the
+    fit's own error, so a tone's spread grows with it; equal priors."""
+    tones = np.asarray(tones_hz, dtype=float)
+    sigma = np.hypot(reading.sigma_hz, tones / (reading.rows * np.sqrt(3.0)))
+    z = (reading.tone_hz - tones) / sigma
+    log_like = -0.5 * z**2 - np.log(sigma)
+    best = int(np.argmax(log_like))
+    weights = np.exp(log_like - log_like[best])
+    if abs(z[best]) > MAX_Z:
+        return ToneMatch(None, 0.0, float(abs(z[best])))
+    return ToneMatch(best, float(weights[best] / weights.sum()), float(abs(z[best])))
