@@ -45,10 +45,11 @@ def _counted_bound(windows: np.ndarray, xyz: np.ndarray) -> int:
 
 
 def test_a_width_left_with_conflicts_leads_to_one_bit_more_with_reuse():
-    """On a proved 3 x 6 grid the counting bound's width (2 bits) leaves conflicts; its best labels
-    seed 3 bits, which are met: still reuse (5 bits would be one ID per luminaire), and the labels
+    """On a proved 4 x 6 grid the counting bound's width (2 bits) leaves conflicts; its best labels
+    seed 3 bits, which are met: still reuse (5 bits would be one ID per luminaire; a 3 x 6 grid's set, since the
+    crossing rule, is met at its bound), and the labels
     pass the independent check against every proved window."""
-    xyz, radii = _site(grid_xy(3, 6, 0.5, 0.5))
+    xyz, radii = _site(grid_xy(4, 6, 0.5, 0.5))
     proof = prove_window_set(xyz, radii, Camera(), 0.03)
     assert proof.triangles is not None
     got = proved_labels(proof.triangles, xyz, TOL, hopeless_per_luminaire=math.inf)
@@ -63,12 +64,12 @@ def test_a_width_left_with_conflicts_leads_to_one_bit_more_with_reuse():
 
 def test_a_width_over_the_tables_budget_parts_the_conflicts_left_below_it(monkeypatch):
     """The 1,024 lattice at 3 cm: 6 bits left 1,289 conflicts and 7 bits' shape-group tables were over
-    TABLE_BUDGET, so it fell to one ID per luminaire (10 bits). Here the same on a proved 3 x 6 grid, its
+    TABLE_BUDGET, so it fell to one ID per luminaire (10 bits). Here the same on a proved 4 x 6 grid, its
     tables allowed 2 bits only: the 2-bit labels (conflicts left) get one more bit chosen to part every
     pair they leave alike. The result passes the independent check against every proved window."""
     from planner.codes import classes, pairwise
 
-    xyz, radii = _site(grid_xy(3, 6, 0.5, 0.5))
+    xyz, radii = _site(grid_xy(4, 6, 0.5, 0.5))
     proof = prove_window_set(xyz, radii, Camera(), 0.03)
     assert proof.triangles is not None
     monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 0)  # the shape groups, as on large lattices

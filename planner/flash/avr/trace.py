@@ -2,7 +2,8 @@
 
 The trace's edges fall on whole chips, so every interval between edges is a whole number of
 chip periods: the chip period is measured as the span of the edges divided by the number of
-chips in it (each interval rounded to whole chips at the shortest interval's scale); the
+chips in it (each interval rounded to whole chips at the shortest interval's scale, which holds one,
+two or three chips: a frame may hold no lone chip); the
 levels between edges, sampled once per measured period, are the chip stream, which the
 receiver's own frame decoder (:func:`planner.modulation.frame.decode_stream`) reads.
 """
@@ -75,10 +76,13 @@ def read_light(path: Path, frame_format: FrameFormat, *, last_s: float = 0.5) ->
     if len(intervals) < 2 or intervals.min() <= 0:
         raise InputError(f"{path}: too few edges in the last {last_s:g} s to measure a chip rate")
     shortest = intervals.min()
-    base = float(np.median(intervals[intervals < 1.5 * shortest]))
-    counts = np.rint(intervals / base).astype(int)
-    period_s = float((times[-1] - times[0]) / counts.sum())
-    off = np.abs(intervals / period_s - counts)
+    for chips_in_shortest in (1, 2, 3):  # a frame may hold no lone chip (runs of 2 and 3 only)
+        base = float(np.median(intervals[intervals < 1.5 * shortest])) / chips_in_shortest
+        counts = np.rint(intervals / base).astype(int)
+        period_s = float((times[-1] - times[0]) / counts.sum())
+        off = np.abs(intervals / period_s - counts)
+        if off.max() <= JITTER_SHARE:
+            break
     if off.max() > JITTER_SHARE:
         raise InputError(f"{path}: an edge interval is {off.max():.2f} chips off a whole number of chips: "
                          "the trace is not chips at one rate (a configuration change inside the window?)")
