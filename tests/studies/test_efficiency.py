@@ -106,7 +106,7 @@ def test_text_report_says_not_computed_and_adds_the_site(tmp_path, capsys):
     curve_part = text.split("Curve:")[1].split("This site:")[0]
     lines = {line.split()[0]: line for line in curve_part.splitlines() if line.strip()[:1].isdigit()}
     assert "not computed" in lines["256"] and "not computed" not in lines["64"] + lines["16"]
-    assert "This site:" in text and "window scheme: 4 bits (naive 5" in text and "efficiency 20 %" in text
+    assert "This site:" in text and "window scheme: 3 bits (naive 5" in text and "efficiency 40 %" in text
     assert "paper 4 bits (0 ambiguous poses)" in text
 
 

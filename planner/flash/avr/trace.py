@@ -76,16 +76,23 @@ def read_light(path: Path, frame_format: FrameFormat, *, last_s: float = 0.5) ->
     if len(intervals) < 2 or intervals.min() <= 0:
         raise InputError(f"{path}: too few edges in the last {last_s:g} s to measure a chip rate")
     shortest = intervals.min()
+    refused: InputError | None = None
     for chips_in_shortest in (1, 2, 3):  # a frame may hold no lone chip (runs of 2 and 3 only)
         base = float(np.median(intervals[intervals < 1.5 * shortest])) / chips_in_shortest
         counts = np.rint(intervals / base).astype(int)
         period_s = float((times[-1] - times[0]) / counts.sum())
         off = np.abs(intervals / period_s - counts)
-        if off.max() <= JITTER_SHARE:
-            break
-    if off.max() > JITTER_SHARE:
-        raise InputError(f"{path}: an edge interval is {off.max():.2f} chips off a whole number of chips: "
-                         "the trace is not chips at one rate (a configuration change inside the window?)")
-    chips = "".join(str(int(level)) * int(n) for level, n in zip(levels[:-1], counts))
-    word = decode_stream(chips, frame_format.word_bits, frame_format.code)
-    return LightReading(chips, period_s, word, frame_format.id_of(word))
+        if off.max() > JITTER_SHARE:
+            refused = refused or InputError(
+                f"{path}: an edge interval is {off.max():.2f} chips off a whole number of chips: the trace is not "
+                "chips at one rate (a configuration change inside the window?)")
+            continue
+        chips = "".join(str(int(level)) * int(n) for level, n in zip(levels[:-1], counts))
+        try:
+            word = decode_stream(chips, frame_format.word_bits, frame_format.code)
+        except InputError as exc:
+            refused = refused or exc
+            continue
+        return LightReading(chips, period_s, word, frame_format.id_of(word))
+    assert refused is not None
+    raise refused
