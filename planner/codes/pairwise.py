@@ -115,25 +115,32 @@ class Index:
 
     def __init__(self, n: int, pairs: np.ndarray):
         pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 6)
-        self.n, self.P = n, pairs
-        srt = np.sort(pairs, axis=1)
-        facing = (pairs[:, :3] == pairs[:, 3:]).sum(axis=1)
+        small = np.int32 if n < 2 ** 31 and len(pairs) < 2 ** 31 // 6 else np.int64  # half the memory: millions of pairs
+        p = pairs.astype(small)
+        self.n, self.P = n, p
+        srt = np.sort(p, axis=1)
+        facing = (p[:, :3] == p[:, 3:]).sum(axis=1)
         full = (srt[:, 1:] == srt[:, :-1]).sum(axis=1) > facing
-        m = np.repeat(np.arange(len(pairs)), 6)
-        col = np.tile(np.arange(6), len(pairs))
-        lum = pairs.reshape(-1).astype(np.int32)
-        partner = pairs[m, (col + 3) % 6]
+        del srt
+        m = np.repeat(np.arange(len(p), dtype=small), 6)
+        col = np.tile(np.arange(6, dtype=np.int8), len(p))
+        lum = p.reshape(-1)
+        partner = p[m, (col + 3) % 6]
         keep = (lum != partner) & ~full[m]  # a luminaire facing itself agrees whatever its label
         m, col, lum, partner = m[keep], col[keep], lum[keep], partner[keep]
+        del keep
         order = np.argsort(lum, kind="stable")
-        m, col, partner = m[order], col[order], partner[order]
+        m, col, partner, lum = m[order], col[order], partner[order], lum[order]
+        del order
         j1, j2 = (col + 1) % 3, (col + 2) % 3
-        self.other = np.column_stack([pairs[m, j1], pairs[m, j1 + 3], pairs[m, j2], pairs[m, j2 + 3]]).astype(np.int32)
+        self.other = np.empty((len(m), 4), dtype=np.int32)
+        for k, (c, off) in enumerate(((j1, 0), (j1, 3), (j2, 0), (j2, 3))):
+            self.other[:, k] = p[m, c + off]
         self.partner = partner.astype(np.int32)
         self.row = m
-        self.start = np.searchsorted(lum[order], np.arange(n + 1))
+        self.start = np.searchsorted(lum, np.arange(n + 1))
         fm = np.flatnonzero(full)
-        held = np.unique(np.column_stack([pairs[fm].reshape(-1), np.repeat(fm, 6)]), axis=0)  # (luminaire, row)
+        held = np.unique(np.column_stack([p[fm].reshape(-1).astype(np.int64), np.repeat(fm, 6)]), axis=0)
         self.full_row = held[:, 1]
         self.full_start = np.searchsorted(held[:, 0], np.arange(n + 1))
 
