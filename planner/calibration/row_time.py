@@ -117,8 +117,7 @@ def _core_band(img: np.ndarray, r_off: int, c_off: int, where: str) -> Stripes:
     lo, hi = np.percentile(profile, [5, 95])
     rows = (r_off + r0, r_off + r1)
     if hi - lo < MIN_CONTRAST_DN:
-        raise InputError(f"{where}: the LED image (rows {rows[0]}-{rows[1]}) shows no stripes; shorten the exposure "
-                         "below one blink period, or check that the luminaire blinks")
+        raise _no_stripes(where, rows)
     level = (lo + hi) / 2
     above = profile > level
     k = np.flatnonzero(above[1:] != above[:-1])  # a crossing between rows k and k + 1
@@ -137,8 +136,7 @@ def _glow(img: np.ndarray, r_off: int, c_off: int, noise: float, where: str) -> 
     runs = np.split(np.arange(len(p)), np.flatnonzero(lit[1:] != lit[:-1]) + 1)
     lit_runs = [r for r in runs if lit[r[0]]]
     if len(lit_runs) < 2:
-        raise InputError(f"{where}: the LED image (rows {rows[0]}-{rows[1]}) shows no stripes; shorten the exposure "
-                         "below one blink period, or check that the luminaire blinks")
+        raise _no_stripes(where, rows)
     solid = np.concatenate([r[1:-1] if len(r) > 2 else r[[np.argmax(p[r])]] for r in lit_runs])  # not partly lit
     envelope = np.exp(np.interp(np.arange(len(p)), solid, np.log(np.maximum(p[solid], 1e-9))))
     level = p / envelope
@@ -148,6 +146,11 @@ def _glow(img: np.ndarray, r_off: int, c_off: int, noise: float, where: str) -> 
     where_rows = r_off + k + (0.5 - level[k]) / (level[k + 1] - level[k])
     span = np.flatnonzero(cols)
     return _fit(where_rows, above[k + 1], rows, (c_off + int(span.min()), c_off + int(span.max())), where)
+
+
+def _no_stripes(where: str, rows: tuple[int, int]) -> InputError:
+    return InputError(f"{where}: the LED image (rows {rows[0]}-{rows[1]}) shows no stripes; shorten the exposure "
+                      "below one blink period, or check that the luminaire blinks")
 
 
 def _run_around(mask: np.ndarray, k: int) -> tuple[int, int]:

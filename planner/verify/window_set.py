@@ -34,14 +34,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planner.verify.rivals import site_triples
-from planner.verify.windows import MIN_FLATNESS, twice_signed_area
+from planner.verify.windows import MIN_FLATNESS, SAME_HEIGHT_M, segment_distance, twice_signed_area
 
 NEIGHBOURS = 32
 """LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
-
-
-SAME_HEIGHT_M = 1e-3
-"""LEDs whose heights differ by less than this count as one ceiling plane [m]."""
 
 
 FIRST = 4
@@ -103,14 +99,6 @@ def _holds(triples: np.ndarray, near: np.ndarray, xyz: np.ndarray, radii: np.nda
         & (np.ptp(xyz[triples, 2], axis=1) < SAME_HEIGHT_M)[:, None]
     small = radii[near] <= radii[triples].min(axis=1)[:, None]
     return (((inside & small) | crossing) & ~member & coplanar).any(axis=1)
-
-
-def segment_distance(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Distance [m] from points ``x`` (T, m, 2) to the segments ``a b`` (T, 2) in plan."""
-    ab = b - a
-    length2 = np.maximum(np.sum(ab * ab, axis=1), 1e-24)[:, None]
-    t = np.clip(np.einsum("tmk,tk->tm", x - a[:, None], ab) / length2, 0.0, 1.0)
-    return np.linalg.norm(x - (a[:, None] + t[..., None] * ab[:, None]), axis=2)
 
 
 def may_be_decoded(p: np.ndarray) -> np.ndarray:

@@ -29,6 +29,9 @@ CANDIDATES = 24
 MIN_FLATNESS = 0.1
 """A triangle whose height is under this share of its longest side counts as collinear."""
 
+SAME_HEIGHT_M = 1e-3
+"""LEDs whose heights differ by less than this count as one ceiling plane [m]."""
+
 
 _BATCH = 20000
 _SOBOL_CHUNK_LOG2 = 16
@@ -217,14 +220,20 @@ def crossed(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray) -> np.ndarr
         half = 0.5 * np.linalg.norm(b - a, axis=1)
         for t, near in enumerate(tree.query_ball_point(0.5 * (a + b), half + big)):
             near = np.array([k for k in near if k not in triples[t]
-                             and abs(xyz[k, 2] - xyz[triples[t, i], 2]) < 1e-3], dtype=np.int64)  # one ceiling
+                             and abs(xyz[k, 2] - xyz[triples[t, i], 2]) < SAME_HEIGHT_M], dtype=np.int64)
             if len(near) == 0 or out[t]:
                 continue
-            ab = b[t] - a[t]
-            u = np.clip((xy[near] - a[t]) @ ab / max(float(ab @ ab), 1e-24), 0.0, 1.0)
-            gap = np.linalg.norm(xy[near] - (a[t] + u[:, None] * ab), axis=1)
+            gap = segment_distance(a[t][None], b[t][None], xy[near][None])[0]
             out[t] = bool(np.any(gap < radii[near]))
     return out
+
+
+def segment_distance(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Distance [m] from points ``x`` (T, m, 2) to the segments ``a b`` (T, 2) in plan."""
+    ab = b - a
+    length2 = np.maximum(np.sum(ab * ab, axis=1), 1e-24)[:, None]
+    t = np.clip(np.einsum("tmk,tk->tm", x - a[:, None], ab) / length2, 0.0, 1.0)
+    return np.linalg.norm(x - (a[:, None] + t[..., None] * ab[:, None]), axis=2)
 
 
 @dataclass(frozen=True)
