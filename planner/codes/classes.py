@@ -59,32 +59,39 @@ def _distinct_ccw(windows: np.ndarray, xyz: np.ndarray) -> np.ndarray:
                              xyz[:, :2])
 
 
-def _turn_ranks(triples: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct side vectors of every turn of ``triples`` (rounded to :data:`SHAPE_RESOLUTION_M`) and
-    each triple's three turns as ranks among them (T x 3): equal ranks are one exact shape."""
+def _turn_ranks(triples: np.ndarray, xyz: np.ndarray,
+                resolution_m: float = SHAPE_RESOLUTION_M) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct side vectors of every turn of ``triples`` (rounded to ``resolution_m``) and
+    each triple's three turns as ranks among them (T x 3): equal ranks are one shape (to that resolution)."""
     rounded = np.round(np.stack([sides(np.roll(triples, -r, axis=1), xyz) for r in range(3)], 1)
-                       / SHAPE_RESOLUTION_M).astype(np.int64)
+                       / resolution_m).astype(np.int64)
     vectors, rank = np.unique(rounded.reshape(-1, 3), axis=0, return_inverse=True)
     return vectors, rank.reshape(-1, 3)
 
 
 def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
-                 matches: np.ndarray | None = None) -> Groups | None:
+                 matches: np.ndarray | None = None, resolution_m: float = SHAPE_RESOLUTION_M) -> Groups | None:
     """Group the windows and every triple of the site within the tolerance of one of them (``matches``,
     if already found: :func:`planner.verify.rivals.shape_matches` of these windows); None when joining
-    the classes would take more than :data:`LINK_BUDGET` links."""
+    the classes would take more than :data:`LINK_BUDGET` links.
+
+    A class is the triples whose sides round alike to ``resolution_m``: exact shapes by default (a
+    lattice), cells as wide as the tolerance on irregular sites, where no two
+    triples are exactly congruent and classes of one triple each would be near thousands of others."""
     win = _distinct_ccw(windows, xyz)
     everything = np.vstack([win, shape_matches(win, xyz, tolerance_m) if matches is None else matches])
     key = np.sort(everything, axis=1)
     _, first = np.unique(key, axis=0, return_index=True)  # windows come first, so they keep their flag
     triples = everything[np.sort(first)]
     is_window = np.sort(first) < len(win)
-    vectors, rank = _turn_ranks(triples, xyz)  # exact classes: the turn whose rounded sides rank lowest
+    vectors, rank = _turn_ranks(triples, xyz, resolution_m)  # classes: the turn whose rounded sides rank lowest
     turn = np.argmin(rank, axis=1)
     cls = rank[np.arange(len(rank)), turn]
     used, cls = np.unique(cls, return_inverse=True)
-    shape = vectors[used] * SHAPE_RESOLUTION_M  # (C, 3) each class's sides in its order
-    merged = _merge(shape, tolerance_m)
+    shape = vectors[used] * resolution_m  # (C, 3) each class's sides in its order
+    # rounding moves a side by at most half the resolution: classes within the tolerance plus one
+    # resolution hold every pair of triples within the tolerance
+    merged = _merge(shape, tolerance_m + resolution_m + SHAPE_RESOLUTION_M)
     if merged is None:
         return None
     group, turn_by, spin = merged
@@ -136,8 +143,8 @@ def near_lower_bound(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -
     return k
 
 
-def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Join classes whose shapes lie within the tolerance in some rotation; returns each class's
+def _merge(shape: np.ndarray, reach_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Join classes whose shapes lie within ``reach_m`` in some rotation; returns each class's
     group, the further turn that brings it into its group's order (first found wins), and
     whether it must be entered in every turn (a match the group order does not cover); None when
     that would take more than :data:`LINK_BUDGET` links."""
@@ -145,14 +152,13 @@ def _merge(shape: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarra
     tree = cKDTree(shape)
     links: list[list[tuple[int, int]]] = [[] for _ in range(c)]
     spin = np.zeros(c, dtype=bool)
-    reach = tolerance_m + 2 * SHAPE_RESOLUTION_M  # class shapes are rounded: reach a little further
     every = max(1, c // 2000)  # links estimated from every so many classes first: counting them all is slow
     for step in sorted({every, 1}, reverse=True):
-        if step * sum(int(tree.query_ball_point(np.roll(shape[::step], -r, axis=1), reach, p=np.inf,
+        if step * sum(int(tree.query_ball_point(np.roll(shape[::step], -r, axis=1), reach_m, p=np.inf,
                                                 return_length=True).sum()) for r in range(3)) > LINK_BUDGET:
             return None
     for r in range(3):
-        for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), reach, p=np.inf)):
+        for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), reach_m, p=np.inf)):
             for v in hits:
                 if v != u:  # roll(shape_u, -r) is near shape_v: u turned by r reads in v's order
                     links[u].append((v, (3 - r) % 3))

@@ -67,6 +67,11 @@ def alike_pairs(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, site: 
     win = counter_clockwise(windows, xyz[:, :2])
     other = counter_clockwise(np.asarray(site, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
     tree = cKDTree(sides(other, xyz))
+    every = max(1, len(win) // 2000)  # estimated from every so many windows first: listing them is slow
+    if every > 1 and every * sum(int(tree.query_ball_point(sides(np.roll(win[::every], -r, axis=1), xyz),
+                                                           tolerance_m + 1e-9, p=np.inf, return_length=True).sum())
+                                 for r in range(3)) > 2 * budget:
+        return None
     parts, found = [], 0
     for r in range(3):
         for start in range(0, len(win), _CHUNK):

@@ -191,7 +191,10 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
         def index_for(K: int) -> pairwise.ConflictIndex | None:
             return index
     else:
-        groups = classes.shape_groups(triangles, xyz, tolerance_m, matches() if matches else None)
+        found = matches() if matches else None
+        groups = classes.shape_groups(triangles, xyz, tolerance_m, found)
+        if groups is None:  # an irregular site: no two triples congruent, so cells of the tolerance's width
+            groups = classes.shape_groups(triangles, xyz, tolerance_m, found, resolution_m=tolerance_m)
         if groups is None:  # neither the pairs nor the groups fit
             return None
         per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
@@ -279,14 +282,12 @@ def _assign_proved(xyz: np.ndarray, radii: np.ndarray, outline, graph: Neighbour
     assert proof.triangles is not None
     n = len(xyz)
     got = proved_labels(proof.triangles, xyz, tolerance_m, seed=seed, matches=lambda: proof.shape_matches(tolerance_m))
-    if got is None:
+    if got is None or got.labels is None:  # no width short of one ID each: the sampled design may still reuse
         return None
     labels, method = got.labels, f"min-conflicts against the {len(proof.triangles):,} proved windows"
     if "split_from_bits" in got.detail:
         method += (f" (the {got.detail['split_from_bits']}-bit labels' {got.detail['split_pairs']:,} alike pairs "
                    "parted by the last bits)")
-    if labels is None:
-        labels, method = np.arange(n, dtype=np.int64), "distinct labels (no shorter labels found)"
     ids = labels.astype(np.int64) + 1
     if seed not in observations:
         observations[seed] = observe_site(xyz, radii, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)

@@ -26,17 +26,18 @@ def _keys(groups, labels):
     return {(g, *row) for g, row in zip(groups.group.tolist(), t.tolist())}, t
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(sites, st.integers(1, 3), st.integers(0, 1000))
-def test_every_rival_find_rivals_names_is_a_conflict_of_the_groups(xy, k, seed):
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sites, st.integers(1, 3), st.integers(0, 1000), st.sampled_from([1e-6, TOL / 2, TOL]))
+def test_every_rival_find_rivals_names_is_a_conflict_of_the_groups(xy, k, seed, resolution):
     """Exact lattices (many congruent copies), near-equilateral hexagonal ones (a shape that
-    matches itself turned) and jittered sites: for random labels of few values, each (window,
-    rival) find_rivals reports has a row of each in one group with equal labels in order."""
+    matches itself turned) and jittered sites, with classes of exact shapes or cells of side
+    lengths as wide as the tolerance (irregular sites): for random labels of few values, each
+    (window, rival) find_rivals reports has a row of each in one group with equal labels in order."""
     xyz = _xyz(xy)
     rng = np.random.default_rng(seed)
     site = site_triples(xy, 1.2)
     windows = site[rng.random(len(site)) < 0.4]
-    groups = shape_groups(windows, xyz, TOL)
+    groups = shape_groups(windows, xyz, TOL, resolution_m=resolution)
     ids = rng.integers(0, k, len(xy))
     labels = ids[groups.triples]
     for w, u in find_rivals(windows, xyz, ids, TOL):
@@ -125,3 +126,22 @@ def test_the_clique_bound_counts_the_largest_set_of_windows_of_one_shape():
     units = site_triples(tri_xy, 0.6 + 1e-9)
     k = clique_lower_bound(units, _xyz(tri_xy))
     assert (k ** 3 + 2 * k) // 3 >= len(units) > ((k - 1) ** 3 + 2 * (k - 1)) // 3
+
+
+def test_an_irregular_site_over_both_budgets_is_labelled_by_groups_of_shape_cells(monkeypatch):
+    """A jittered lattice has no two congruent triples: with the pairs over their budget and the
+    links between one-triple classes over theirs, the groups are cells of the tolerance's width,
+    and the labels still leave no window reading like any triple of the site."""
+    from planner.codes import classes, pairwise
+    from planner.codes.schemes import proved_labels
+
+    xy = grid_xy(8, 10, 0.6, 0.6, jitter_m=0.03, seed=3)
+    xyz = _xyz(xy)
+    windows = site_triples(xy, 0.9)
+    monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 2_000)
+    monkeypatch.setattr(classes, "LINK_BUDGET", 5_000)
+    assert shape_groups(windows, xyz, TOL) is None
+    got = proved_labels(windows, xyz, TOL)
+    assert got is not None and got.labels is not None and got.bits < 7
+    assert 0 < got.detail["shape_groups"] < 20
+    assert find_rivals(windows, xyz, got.labels, TOL) == []
