@@ -2,9 +2,10 @@
 
 One line shared by five emulated ATmega328P drivers (firmware_templates/driver/ on simavr,
 AVR-00000N at address N) and hostile Python peers (planner.flash.avr.runner's ``peers``):
-faulty peers that stall the host or claim what no host signed, and impostors without the
-site's keys that claim the real drivers' serials and versions or replay a real driver's
-recorded answer in its place. The installed vlp-flash runs one batch over all of them, then
+the model's faulty drivers (stalls, fields out of range, short replies, a version no host
+signed, HELLOs that prove nothing), and impostors without the site's keys that claim the
+real drivers' serials and versions or replay a real driver's recorded answer in its place
+(the relay of test_hostile_drivers.py is the model's only). The installed vlp-flash runs one batch over all of them, then
 ``--verify-only``: every attack fails its driver alone in one line, the firmware drivers are
 flashed and verified, and the journal says what the firmware proves when asked afterwards.
 Every image the host sent on the shared line, replayed by a listener into a real driver it
@@ -24,6 +25,7 @@ from types import SimpleNamespace
 import pytest
 import serial
 from test_driver_avr import BAUD, BIN, RETRIES, _send
+from test_hostile_drivers import ATTACKS as MODEL_ATTACKS
 from test_hostile_drivers import Hostile
 
 from conftest import SITE_KEY, grid32_copy
@@ -50,28 +52,32 @@ BOUND = {"R01C02": 2, "R01C08": 4}
 """Luminaires whose firmware drivers took their first image before the batch (journal: bound). AVR-000002 is then
 taken from the line (powered off) and an impostor answers in its place; AVR-000004 answers for R01C04."""
 
-ATTACKS = {  # attack: (luminaire, address, what its line says)
+IDENTITY = {  # attack: (luminaire, address, what its line says)
     "replay": ("R01C02", 2, "driver claiming serial AVR-000002 at address 2 failed the challenge: its HELLO's MAC "
                             "is not that driver's"),
     "wrong-map": ("R01C04", 4, "driver AVR-000004 is bound to luminaire R01C08 (journal), not R01C04"),
-    "zero-staged": ("R01C05", 15, "staged nothing new in 4 WRITEs at offset 0 (it answers 0 bytes staged)"),
-    "offset-zero": ("R01C06", 16, "staged nothing new in 4 WRITEs at offset 0 (it answers 0 bytes staged)"),
-    "max-block-0": ("R01C07", 17, "HELLO max_block 0 is outside the protocol's 16..1,016"),
-    "slow-blocks": ("R02C01", 18, "HELLO block_write_us 4,294,967,295 is outside the protocol's 0..2,000,000"),
-    "version-999999": ("R02C02", 19, "claims to run version 999,999, more than 100 above the 1 this host knows for it"),
-    "version-burn": ("R02C03", 20, "driver claiming serial AVR-000002 at address 20 failed the challenge"),
-    "other-serial": ("R02C04", 21, "driver claiming serial AVR-000001 at address 21 failed the challenge"),
+    "version-burn": ("R01C05", 12, "driver claiming serial AVR-000002 at address 12 failed the challenge"),
+    "other-serial": ("R01C06", 13, "driver claiming serial AVR-000001 at address 13 failed the challenge"),
 }
-"""replay: blank, it answers every challenge with AVR-000002's answer recorded before (AVR-000002 is off).
-wrong-map is no peer: the real AVR-000004 answers at the address the bus map gives R01C04 (a swapped map, or the
-wrong driver plugged). zero-staged .. version-999999 are faulty peers with keys of their own (SIM-0000NN);
-version-burn and other-serial are impostors claiming AVR-000002 at version 999,999 and AVR-000001 (R01C01's
-driver, flashed just before)."""
+"""Attacks on the firmware drivers' identities. replay: blank, it answers every challenge with AVR-000002's answer
+recorded before (AVR-000002 is off). wrong-map is no peer: the real AVR-000004 answers at the address the bus map
+gives R01C04 (a swapped map, or the wrong driver plugged). version-burn and other-serial hold another site's key and
+claim AVR-000002 at version 999,999, and AVR-000001 (R01C01's driver, flashed just before)."""
 
-IMPOSTORS = ("replay", "version-burn", "other-serial")
-BATCH = {"R01C01": 1, "R01C02": 2, "R01C04": 4, "R01C05": 15, "R01C06": 16, "R01C03": 3, "R01C07": 17,
-         "R02C01": 18, "R02C02": 19, "R02C03": 20, "R02C04": 21, "R02C05": 5}
+FAULTY = ("zero-staged", "offset-zero", "max-block-0", "slow-blocks", "huge-timing", "short-hello", "short-begin",
+          "control-serial", "version-999999", "protocol-1", "no-mac")
+"""The model's faulty drivers (test_hostile_drivers.ATTACKS: stalls, fields out of range, short replies, a version
+no host signed, HELLOs that prove nothing), each with a key of its own (SIM-0000NN at address NN): the same lines."""
+
+ATTACKS = IDENTITY | {attack: (name, 21 + k, MODEL_ATTACKS[attack]) for k, (attack, name) in enumerate(zip(
+    FAULTY, ["R01C07", "R02C01", "R02C02", "R02C03", "R02C04", "R02C06", "R02C07", "R02C08", "R03C01", "R03C02",
+             "R03C03"], strict=True))}
+BATCH = dict([("R01C01", 1), *[ATTACKS[a][:2] for a in IDENTITY], ("R01C03", 3),
+              *[ATTACKS[a][:2] for a in FAULTY], ("R02C05", 5)])
 """The batch's bus map, in its order: honest drivers first, among the attacks and last."""
+IMPOSTORS = ("replay", "version-burn", "other-serial")
+SIGNED = ("zero-staged", "offset-zero", "short-begin")
+"""The faulty peers that prove their key and fail only after BEGIN: an image is signed for them (their own serial)."""
 
 
 def _peer(attack: str, address: int) -> Hostile:
@@ -81,7 +87,7 @@ def _peer(attack: str, address: int) -> Hostile:
     elif attack == "other-serial":
         peer = Hostile(address, "honest", serial="AVR-000001")
     else:
-        peer = Hostile(address, attack)
+        peer = Hostile(address, attack, protocol=1 if attack == "protocol-1" else 2)
     if attack in IMPOSTORS:
         peer._key = driver_key(OTHER_SITE, peer.serial)
     return peer
@@ -193,22 +199,22 @@ def site(tmp_path_factory) -> SimpleNamespace:
                     replayed.append((Status(exc.status).name if exc.status is not None else str(exc), exc.detail))
             victim_after = flash_driver(link, 2, _image(base, "R01C02"), KEY, verify_only=True)
     return SimpleNamespace(base=base, recorded=recorded, flashed=flashed, checked=checked, proved=proved,
-                           peers=peers, begun=begun, images=images, replayed=replayed, victim_after=victim_after)
+                           begun=begun, images=images, replayed=replayed, victim_after=victim_after)
 
 
 @pytest.mark.parametrize("attack", sorted(ATTACKS))
 def test_each_attack_fails_its_driver_alone_in_one_line(site, attack):
     name, address, why = ATTACKS[attack]
-    k = list(BATCH).index(name) + 1
+    status = "unauthenticated" if "own word" in why else "failed"  # a v1 HELLO, or one without a MAC
     line = site.flashed.by_name[name]
-    assert line.startswith(f"[{k}/{len(BATCH)}] {name}: driver ") and "failed, NOT verified" in line, line
-    assert why in line, line
+    assert line.startswith(f"[{list(BATCH).index(name) + 1}/{len(BATCH)}] {name}: driver "), line
+    assert f"{status}, NOT verified" in line and why in line, line
     entry = site.flashed.entries[name]
-    assert (entry["status"], entry["verified"]) == ("failed", False) and why in entry["message"]
+    assert (entry["status"], entry["verified"]) == (status, False) and why in entry["message"]
     assert entry["bound_serial"] == ("AVR-000002" if name == "R01C02" else "")  # never bound to what answered
     signed_for = [version for to, _, version, _ in site.begun if to == address]
-    if attack in ("zero-staged", "offset-zero"):  # a faulty driver with its own key: signed, at the plan's version
-        assert signed_for and set(signed_for) == {1} and set(site.peers[attack].begun_versions) == {1}
+    if attack in SIGNED:  # a faulty driver with its own key: signed for it, at the plan's version
+        assert signed_for and set(signed_for) == {1}
     else:  # nothing signed for it, nor sent to the real driver at the wrong luminaire
         assert signed_for == []
     line = site.checked.by_name[name]
@@ -223,7 +229,7 @@ def test_the_firmware_drivers_are_flashed_and_the_batch_finishes(site):
     for run in (flashed, checked):
         assert run.code == 3 and len(run.lines) == len(BATCH), run.lines + run.err
         assert run.err == [f"vlp-flash: {len(failed)} driver(s) failed and keep their previous configuration: "
-                           f"{', '.join(failed)}; journal {site.base / 'as-built.json'}"]
+                           f"{', '.join(failed[:10])} ...; journal {site.base / 'as-built.json'}"]
     for name, address in HONEST.items():
         assert f"{name}: driver AVR-{address:06d}: flashed, verified (version 1, " in flashed.by_name[name]
         assert f"{name}: driver AVR-{address:06d}: verified, verified (version 1, " in checked.by_name[name]
