@@ -5,7 +5,7 @@ AVR-00000N at address N) and hostile Python peers (planner.flash.avr.runner's ``
 the model's faulty drivers (stalls, fields out of range, short replies, a version no host
 signed, HELLOs that prove nothing), and impostors without the site's keys that claim the
 real drivers' serials and versions or replay a real driver's recorded answer in its place
-(the relay of test_hostile_drivers.py is the model's only). The installed vlp-flash runs one batch over all of them, then
+or relay a real driver's answers to the host's challenges. The installed vlp-flash runs one batch over all of them, then
 ``--verify-only``: every attack fails its driver alone in one line, the firmware drivers are
 flashed and verified, and the journal says what the firmware proves when asked afterwards.
 Every image the host sent on the shared line, replayed by a listener into a real driver it
@@ -15,8 +15,11 @@ was not signed for, is refused by that driver's firmware. One bus and three vlp-
 
 import hashlib
 import json
+import os
+import select
 import struct
 import subprocess
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,11 +32,22 @@ from test_hostile_drivers import ATTACKS as MODEL_ATTACKS
 from test_hostile_drivers import Hostile
 
 from conftest import SITE_KEY, grid32_copy
-from planner.flash.avr.runner import AvrBus
+from planner.flash.avr.runner import AvrBus, EmulatedDriver
 from planner.flash.flasher import flash_driver
 from planner.flash.keys import driver_key
 from planner.flash.link import Link, LinkError
-from planner.flash.wire import BEGIN_REQUEST, WRITE_HEAD, Command, Deframer, Hello, Status, WireError, decode, hello_mac
+from planner.flash.wire import (
+    BEGIN_REQUEST,
+    FLAG_RESPONSE,
+    WRITE_HEAD,
+    Command,
+    Deframer,
+    Hello,
+    Packet,
+    Status,
+    encode,
+    hello_mac,
+)
 
 pytestmark = [pytest.mark.needs_avr, pytest.mark.slow]
 
@@ -50,7 +64,8 @@ HONEST = {"R01C01": 1, "R01C03": 3, "R02C05": 5}
 
 BOUND = {"R01C02": 2, "R01C08": 4}
 """Luminaires whose firmware drivers took their first image before the batch (journal: bound). AVR-000002 is then
-taken from the line (powered off) and an impostor answers in its place; AVR-000004 answers for R01C04."""
+taken from the line (powered off) and an impostor answers in its place; AVR-000004 answers at R01C04's address
+and, through a relay, in R01C08's place."""
 
 IDENTITY = {  # attack: (luminaire, address, what its line says)
     "replay": ("R01C02", 2, "driver claiming serial AVR-000002 at address 2 failed the challenge: its HELLO's MAC "
@@ -58,11 +73,15 @@ IDENTITY = {  # attack: (luminaire, address, what its line says)
     "wrong-map": ("R01C04", 4, "driver AVR-000004 is bound to luminaire R01C08 (journal), not R01C04"),
     "version-burn": ("R01C05", 12, "driver claiming serial AVR-000002 at address 12 failed the challenge"),
     "other-serial": ("R01C06", 13, "driver claiming serial AVR-000001 at address 13 failed the challenge"),
+    "relay": ("R01C08", 14, "driver claiming serial AVR-000004 at address 14 failed the challenge: its HELLO's MAC "
+                            "is not that driver's"),
 }
 """Attacks on the firmware drivers' identities. replay: blank, it answers every challenge with AVR-000002's answer
 recorded before (AVR-000002 is off). wrong-map is no peer: the real AVR-000004 answers at the address the bus map
 gives R01C04 (a swapped map, or the wrong driver plugged). version-burn and other-serial hold another site's key and
-claim AVR-000002 at version 999,999, and AVR-000001 (R01C01's driver, flashed just before)."""
+claim AVR-000002 at version 999,999, and AVR-000001 (R01C01's driver, flashed just before). relay: in R01C08's
+place, it passes the host's challenge to R01C08's own driver AVR-000004 (over that driver's pipe, not the line) and
+returns its answer as its own."""
 
 FAULTY = ("zero-staged", "offset-zero", "max-block-0", "slow-blocks", "huge-timing", "short-hello", "short-begin",
           "control-serial", "version-999999", "protocol-1", "no-mac")
@@ -75,7 +94,7 @@ ATTACKS = IDENTITY | {attack: (name, 21 + k, MODEL_ATTACKS[attack]) for k, (atta
 BATCH = dict([("R01C01", 1), *[ATTACKS[a][:2] for a in IDENTITY], ("R01C03", 3),
               *[ATTACKS[a][:2] for a in FAULTY], ("R02C05", 5)])
 """The batch's bus map, in its order: honest drivers first, among the attacks and last."""
-IMPOSTORS = ("replay", "version-burn", "other-serial")
+IMPOSTORS = ("replay", "version-burn", "other-serial", "relay")
 SIGNED = ("zero-staged", "offset-zero", "short-begin")
 """The faulty peers that prove their key and fail only after BEGIN: an image is signed for them (their own serial)."""
 
@@ -91,6 +110,39 @@ def _peer(attack: str, address: int) -> Hostile:
     if attack in IMPOSTORS:
         peer._key = driver_key(OTHER_SITE, peer.serial)
     return peer
+
+
+@dataclass
+class Relay:
+    """A peer at ``address`` that passes the host's HELLO challenges to the firmware driver ``victim`` and answers
+    with the victim's answers. It runs in the bus's thread, which reads no driver while it waits."""
+
+    address: int
+    victim: EmulatedDriver | None = None
+    relayed: list[tuple[bytes, bytes]] = field(default_factory=list)  # (nonce, the victim's answer)
+    deframer: Deframer = field(default_factory=Deframer)
+
+    def receive(self, data: bytes) -> bytes:
+        out = b""
+        for p in self.deframer.packets(data)[0]:
+            if not p.is_response and p.address == self.address and p.command == Command.HELLO:
+                answer = self._ask(p.payload, p.seq)
+                self.relayed.append((p.payload, answer))
+                out += encode(Packet(self.address, FLAG_RESPONSE, p.seq, Command.HELLO, answer))
+        return out
+
+    def _ask(self, nonce: bytes, seq: int) -> bytes:
+        assert self.victim is not None and self.victim.process is not None
+        stdin, stdout = self.victim.process.stdin, self.victim.process.stdout
+        assert stdin is not None and stdout is not None
+        stdin.write(encode(Packet(self.victim.address, 0, seq, Command.HELLO, nonce)))
+        deframer, deadline = Deframer(), time.monotonic() + 10
+        while time.monotonic() < deadline:
+            if select.select([stdout], [], [], 0.05)[0]:
+                for p in deframer.packets(os.read(stdout.fileno(), 4096))[0]:
+                    if p.is_response and p.seq == seq:
+                        return p.payload
+        raise AssertionError(f"{self.victim.serial} did not answer the relayed HELLO within 10 s")
 
 
 @dataclass
@@ -113,11 +165,7 @@ class Sniffer:
     writes: list[tuple[int, int, bytes]] = field(default_factory=list)  # (address, offset, data)
 
     def __call__(self, data: bytes) -> bytes:
-        for frame in self.deframer.feed(data):
-            try:
-                p = decode(frame)
-            except WireError:
-                continue
+        for p in self.deframer.packets(data)[0]:
             if p.command == Command.BEGIN and len(p.payload) == BEGIN_REQUEST.size:
                 self.begun.append((p.address, *BEGIN_REQUEST.unpack(p.payload)[:3]))
             elif p.command == Command.WRITE and len(p.payload) > WRITE_HEAD.size:
@@ -165,10 +213,11 @@ def site(tmp_path_factory) -> SimpleNamespace:
     (base / "key").write_text(KEY.hex())
     grid32_copy(tmp_path_factory, base / "a", sealed=True)  # sealed: vlp-flash flashes no other plan
     journal = base / "as-built.json"
-    peers = {a: _peer(a, address) for a, (_, address, _) in ATTACKS.items() if a != "wrong-map"}
+    peers = {a: _peer(a, address) for a, (_, address, _) in ATTACKS.items() if a not in ("wrong-map", "relay")}
     plugs = {a: Plug(p.receive, on=a != "replay") for a, p in peers.items()}
-    sniffer = Sniffer()
-    with AvrBus(5, KEY, base / "eeprom", peers=[sniffer, *plugs.values()]).start() as bus:
+    relay, sniffer = Relay(ATTACKS["relay"][1]), Sniffer()
+    with AvrBus(5, KEY, base / "eeprom", peers=[sniffer, relay.receive, *plugs.values()]).start() as bus:
+        relay.victim = bus.driver(4)
         for _ in range(3):  # the starting point: R01C02 and R01C08 bound (resumed if the machine is slow)
             setup = _vlp_flash(base, bus.port, BOUND, "--resume")
             if setup.returncode == 0:
@@ -198,7 +247,7 @@ def site(tmp_path_factory) -> SimpleNamespace:
                 except LinkError as exc:
                     replayed.append((Status(exc.status).name if exc.status is not None else str(exc), exc.detail))
             victim_after = flash_driver(link, 2, _image(base, "R01C02"), KEY, verify_only=True)
-    return SimpleNamespace(base=base, recorded=recorded, flashed=flashed, checked=checked, proved=proved,
+    return SimpleNamespace(base=base, recorded=recorded, relayed=relay.relayed, flashed=flashed, checked=checked, proved=proved,
                            begun=begun, images=images, replayed=replayed, victim_after=victim_after)
 
 
@@ -211,7 +260,8 @@ def test_each_attack_fails_its_driver_alone_in_one_line(site, attack):
     assert f"{status}, NOT verified" in line and why in line, line
     entry = site.flashed.entries[name]
     assert (entry["status"], entry["verified"]) == (status, False) and why in entry["message"]
-    assert entry["bound_serial"] == ("AVR-000002" if name == "R01C02" else "")  # never bound to what answered
+    bound = f"AVR-{BOUND[name]:06d}" if name in BOUND else ""
+    assert entry["bound_serial"] == bound  # never bound to what answered
     signed_for = [version for to, _, version, _ in site.begun if to == address]
     if attack in SIGNED:  # a faulty driver with its own key: signed for it, at the plan's version
         assert signed_for and set(signed_for) == {1}
@@ -238,21 +288,20 @@ def test_the_firmware_drivers_are_flashed_and_the_batch_finishes(site):
 
 
 def test_the_journal_says_what_the_firmware_proves(site):
-    """Asked by fresh challenges after both runs, each firmware driver holds its own luminaire's image, as the
-    journal says; AVR-000002, plugged back, still holds R01C02's, which the journal no longer calls verified
-    (the impostor answered in its place) but keeps bound to it."""
+    """Asked by fresh challenges after both runs, each firmware driver holds its own luminaire's image. The journal
+    says so of the honest ones; of R01C02 and R01C08, whose drivers hold theirs too but where an impostor and a
+    relay answered in the batch, it says failed, keeping each bound to its driver and its last proof."""
     entries = site.checked.entries
     for name, result in site.proved.items():
         address = (HONEST | BOUND)[name]
         assert result.verified and (result.status, result.serial) == ("verified", f"AVR-{address:06d}"), result
         assert entries[name]["bound_serial"] == result.serial
-        assert entries[name]["verified"] == (name != "R01C02")
-        if entries[name]["verified"]:
-            assert entries[name]["active_sha256"] == result.active_sha256
-    victim = entries["R01C02"]
-    assert victim["driver_serial"] == "" and victim["last_verified"] == {"driver_serial": "AVR-000002",
-                                                                        "image_version": 1}  # before the impostor
-    assert sorted(n for n, e in entries.items() if e["verified"]) == sorted(HONEST | {"R01C08": 4})
+        if name in HONEST:
+            assert entries[name]["verified"] and entries[name]["active_sha256"] == result.active_sha256
+        else:
+            assert (entries[name]["verified"], entries[name]["driver_serial"]) == (False, "")
+            assert entries[name]["last_verified"] == {"driver_serial": result.serial, "image_version": 1}
+    assert sorted(n for n, e in entries.items() if e["verified"]) == sorted(HONEST)
 
 
 def test_images_seen_on_the_line_are_refused_by_the_firmware_they_were_not_signed_for(site):
@@ -267,10 +316,16 @@ def test_images_seen_on_the_line_are_refused_by_the_firmware_they_were_not_signe
     assert after.active_sha256 == site.proved["R01C02"].active_sha256
 
 
-def test_the_replayed_answer_was_the_real_firmware_s(site):
+def test_the_replayed_and_relayed_answers_were_the_real_firmware_s(site):
     """The impostor's recording is a genuine answer of AVR-000002 at its own address (its MAC checks for the nonce
-    it answered), so the host's fresh nonce alone refused it."""
+    it answered), so the host's fresh nonce alone refused it; the relay's answers are AVR-000004's to the host's
+    own nonces, so the address in the MAC alone refused them."""
     hello = Hello.unpack(site.recorded.payload)
     assert (hello.serial, hello.active_version, site.recorded.address) == ("AVR-000002", 1, 2)
     assert hello.mac == hello_mac(driver_key(KEY, "AVR-000002"), bytes(16), 2, hello.body())
+    assert len(site.relayed) >= 2  # the flash and the --verify-only run each asked
+    for nonce, answer in site.relayed:
+        hello = Hello.unpack(answer)
+        assert (hello.serial, hello.active_version) == ("AVR-000004", 1)
+        assert hello.mac == hello_mac(driver_key(KEY, "AVR-000004"), nonce, 4, hello.body())
 
