@@ -128,10 +128,12 @@ class Relay:
             if not p.is_response and p.address == self.address and p.command == Command.HELLO:
                 answer = self._ask(p.payload, p.seq)
                 self.relayed.append((p.payload, answer))
-                out += encode(Packet(self.address, FLAG_RESPONSE, p.seq, Command.HELLO, answer))
+                if answer:
+                    out += encode(Packet(self.address, FLAG_RESPONSE, p.seq, Command.HELLO, answer))
         return out
 
     def _ask(self, nonce: bytes, seq: int) -> bytes:
+        """The victim's answer to ``nonce``; b"" if none within 10 s (the test then fails on ``relayed``)."""
         assert self.victim is not None and self.victim.process is not None
         stdin, stdout = self.victim.process.stdin, self.victim.process.stdout
         assert stdin is not None and stdout is not None
@@ -142,7 +144,7 @@ class Relay:
                 for p in deframer.packets(os.read(stdout.fileno(), 4096))[0]:
                     if p.is_response and p.seq == seq:
                         return p.payload
-        raise AssertionError(f"{self.victim.serial} did not answer the relayed HELLO within 10 s")
+        return b""
 
 
 @dataclass
