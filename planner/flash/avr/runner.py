@@ -8,11 +8,15 @@ decides who answers (docs/protocol.md section 1). Each driver's EEPROM is the 1,
 file ``<eeprom dir>/<serial>.eeprom``, provisioned with its bus address, serial and
 per-driver key (planner/flash/keys.py) and written through by the harness on every byte
 the firmware programs; :meth:`AvrBus.power_cut` kills a driver's process (SIGKILL, at
-whatever instruction it is) and boots it again from that file. At start-up each driver
-must answer one HELLO on its own pipe before the host gets the line (a power-on self-test:
-on a loaded machine starting the processes can take longer than the host's retries);
-after a power cut the host meets the reboot as it is. With a trace folder,
-driver ``a``'s LED pin is traced to ``<trace dir>/<a>.vcd`` (restarted at every boot).
+whatever instruction it is) and boots it again from that file (:meth:`AvrBus.power_off`
+leaves it off until then). At start-up each driver must answer one HELLO on its own pipe
+before the host gets the line (a power-on self-test: on a loaded machine starting the
+processes can take longer than the host's retries); after a power cut the host meets the
+reboot as it is. With a trace folder, driver ``a``'s LED pin is traced to
+``<trace dir>/<a>.vcd`` (restarted at every boot).
+``peers`` share the line with the firmware: callables that take the host's bytes and return
+the bytes they send back (a :class:`~planner.flash.sim.driver.SimulatedDriver`'s
+``receive``), such as the hostile drivers of tests/flash/test_hostile_avr.py.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import threading
 import time
 import tty
 import zlib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,7 +90,8 @@ class AvrBus:
     """``n_drivers`` emulated drivers at addresses ``first_address``.. with serials ``<prefix><address:06d>``."""
 
     def __init__(self, n_drivers: int, site_key: bytes, eeprom_dir: Path, *, first_address: int = 1,
-                 serial_prefix: str = "AVR-", trace_dir: Path | None = None, build_dir: Path | None = None):
+                 serial_prefix: str = "AVR-", trace_dir: Path | None = None, build_dir: Path | None = None,
+                 peers: Sequence[Callable[[bytes], bytes]] = ()):
         last = first_address + n_drivers - 1
         if not 1 <= n_drivers <= MAX_DRIVERS or not 1 <= first_address <= last <= 0xFFFE:
             raise UsageError(f"{n_drivers} emulated drivers from address {first_address}: run 1 to {MAX_DRIVERS} "
@@ -108,6 +114,7 @@ class AvrBus:
             provision(path, address, serial, driver_key(site_key, serial))
             self.drivers.append(EmulatedDriver(address, serial, path,
                                                trace_dir / f"{address}.vcd" if trace_dir is not None else None))
+        self.peers = list(peers)  # each peer's ``receive``: it hears every byte the host sends
         self.last_request: tuple[int, int] | None = None  # (address, command) the host last sent, whole
         self._host_frames = Deframer()
         self._lock = threading.Lock()
@@ -167,6 +174,13 @@ class AvrBus:
         with self._lock:
             self._halt(driver, kill=True)
             self._boot(driver)
+        os.write(self._wake_w, b"x")
+
+    def power_off(self, address: int) -> None:
+        """Cut the driver's power and leave it off (a driver taken from the line); :meth:`power_cut` boots it."""
+        driver = self.driver(address)
+        with self._lock:
+            self._halt(driver, kill=True)
         os.write(self._wake_w, b"x")
 
     @staticmethod
@@ -229,6 +243,13 @@ class AvrBus:
                         d.process.stdin.write(data)
                     except (OSError, ValueError):  # the driver is off: the bytes are lost, as on a real line
                         pass
+        for receive in self.peers:
+            answer = receive(data)
+            if answer:
+                try:
+                    os.write(self.master, answer)
+                except OSError:  # as _from_driver: lost, as on an unread line
+                    pass
 
     def _from_driver(self, fd: int, driver: EmulatedDriver, process: subprocess.Popen) -> None:
         with self._lock:
