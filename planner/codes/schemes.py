@@ -26,12 +26,13 @@ import numpy as np
 from planner.camera.model import Camera
 from planner.codes import classes, pairwise
 from planner.codes import window as window_code
+from planner.codes.alike import AlikeIndex
 from planner.codes.assignment import Assignment, bits_for, tile_regions
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
 from planner.layout.model import area_m2
 from planner.verify.proof import Proof
-from planner.verify.rivals import counter_clockwise, find_rivals, longest_side, sides, site_triples
+from planner.verify.rivals import counter_clockwise, find_rivals, longest_side, shape_matches, sides, site_triples
 from planner.verify.verify import Verification, classify, design_windows, observe_site
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
@@ -183,25 +184,30 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     neither the pairs nor the groups are within their budgets (:data:`planner.codes.classes.LINK_BUDGET`).
     """
     n = len(xyz)
+    index: pairwise.ConflictIndex | None = None
     pairs = pairwise.alike_pairs(triangles, xyz, tolerance_m, budget=pairwise.ALIKE_BUDGET)
     if pairs is not None:
-        index = pairwise.Index(n, pairs)
-        per, size = HOPELESS_PER_LUMINAIRE, {"alike_pairs": len(pairs)}
-
-        def index_for(K: int) -> pairwise.ConflictIndex | None:
-            return index
+        index, per, size = pairwise.Index(n, pairs), HOPELESS_PER_LUMINAIRE, {"alike_pairs": len(pairs)}
     else:
-        found = matches() if matches else None
-        groups = classes.shape_groups(triangles, xyz, tolerance_m, found)
-        if groups is None:  # an irregular site: no two triples congruent, so cells of the tolerance's width
-            groups = classes.shape_groups(triangles, xyz, tolerance_m, found, resolution_m=tolerance_m)
-        if groups is None:  # neither the pairs nor the groups fit
+        found = matches() if matches else shape_matches(triangles, xyz, tolerance_m)
+        groups = classes.shape_groups(triangles, xyz, tolerance_m, found)  # a lattice: congruent cliques
+        if groups is None:  # an irregular site: every pair, compactly (tens of millions)
+            lean = AlikeIndex.build(triangles, found, xyz, tolerance_m)
+            if lean is not None:
+                index, per, size = lean, HOPELESS_PER_LUMINAIRE, {"alike_pairs": lean.pairs}
+            else:  # cells of the tolerance's width: no two triples congruent
+                groups = classes.shape_groups(triangles, xyz, tolerance_m, found, resolution_m=tolerance_m)
+        if groups is None and index is None:  # neither the pairs nor the groups fit
             return None
-        per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
-                                                                "grouped_triples": len(groups.triples)}
+        if groups is not None:
+            per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
+                                                            "grouped_triples": len(groups.triples)}
 
-        def index_for(K: int) -> pairwise.ConflictIndex | None:
-            return classes.ClassIndex(n, groups, K) if classes.ClassIndex.fits(groups, K) else None
+    def index_for(K: int) -> pairwise.ConflictIndex | None:
+        if index is not None:
+            return index
+        assert groups is not None
+        return classes.ClassIndex(n, groups, K) if classes.ClassIndex.fits(groups, K) else None
     hopeless = (per if hopeless_per_luminaire is None else hopeless_per_luminaire) * n
     unique_bits = bits_for(n)
     bound = max(classes.clique_lower_bound(triangles, xyz),  # no fewer labels can work: not tried

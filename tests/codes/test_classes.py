@@ -128,11 +128,11 @@ def test_the_clique_bound_counts_the_largest_set_of_windows_of_one_shape():
     assert (k ** 3 + 2 * k) // 3 >= len(units) > ((k - 1) ** 3 + 2 * (k - 1)) // 3
 
 
-def test_an_irregular_site_over_both_budgets_is_labelled_by_groups_of_shape_cells(monkeypatch):
-    """A jittered lattice has no two congruent triples: with the pairs over their budget and the
-    links between one-triple classes over theirs, the groups are cells of the tolerance's width,
-    and the labels still leave no window reading like any triple of the site."""
-    from planner.codes import classes, pairwise
+def test_an_irregular_site_over_the_budgets_is_labelled_by_its_pairs_or_by_groups_of_shape_cells(monkeypatch):
+    """A jittered lattice has no two congruent triples: with the listed pairs over their budget and the
+    links between one-triple classes over theirs, the compact index holds every pair; over its budget
+    too, the groups are cells of the tolerance's width. Either way no window reads like any triple."""
+    from planner.codes import alike, classes, pairwise
     from planner.codes.schemes import proved_labels
 
     xy = grid_xy(8, 10, 0.6, 0.6, jitter_m=0.03, seed=3)
@@ -141,6 +141,11 @@ def test_an_irregular_site_over_both_budgets_is_labelled_by_groups_of_shape_cell
     monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 2_000)
     monkeypatch.setattr(classes, "LINK_BUDGET", 5_000)
     assert shape_groups(windows, xyz, TOL) is None
+    got = proved_labels(windows, xyz, TOL)
+    assert got is not None and got.labels is not None and got.bits < 7
+    assert got.detail["alike_pairs"] == len(alike_pairs(windows, xyz, TOL)) > 2_000
+    assert find_rivals(windows, xyz, got.labels, TOL) == []
+    monkeypatch.setattr(alike, "PAIR_BUDGET", 2_000)
     got = proved_labels(windows, xyz, TOL)
     assert got is not None and got.labels is not None and got.bits < 7
     assert 0 < got.detail["shape_groups"] < 20
