@@ -121,6 +121,16 @@ def plan256_dir(tmp_path_factory) -> Path:
     return _shared_plan(tmp_path_factory, "grid-256.yaml", None)
 
 
+@pytest.fixture(scope="session")
+def grid32_plan():
+    """``grid-32.yaml`` planned in process with default options and the error map (4 poses per m2), once per
+    worker: the :class:`planner.plan.model.Plan` that tests of the maps and figures read; never change it."""
+    from planner.layout.read import read_layout
+    from planner.plan.pipeline import PlanOptions, make_plan
+
+    return make_plan(read_layout(ROOT / "layouts" / "grid-32.yaml", None), PlanOptions(error_poses_per_m2=4.0))
+
+
 STRONG_WIDE_CAMERA = {"width_px": 4000, "height_px": 3000, "fx_px": 2800.0, "fy_px": 2800.0, "lens": "pinhole",
                       "distortion": [-0.2, 0.05]}
 """A camera YAML's fields for a strongly distorting wide lens, stronger than the ``wide`` profile's: 77.3 deg

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, grid32_copy
 from planner.cli import plan as plan_cli
 from planner.cli import verify as verify_cli
 from planner.errors import UsageError
@@ -14,19 +14,23 @@ from planner.plan.pipeline import PlanOptions, make_plan
 from planner.verify import windows
 
 
+class _Drawn(Exception):
+    """Raised by the spy once make_plan has drawn its one sample: the stages after it are not what is counted."""
+
+
 def test_the_plan_sample_counted_is_the_one_make_plan_draws(monkeypatch):
     drawn = []
     real = windows.PoseSample.draw.__func__
 
     def spy(cls, area, xyz, radii, camera, per_m2, seed=0):
-        sample = real(cls, area, xyz, radii, camera, per_m2, seed)
-        drawn.append(len(sample.poses))
-        return sample
+        drawn.append(len(real(cls, area, xyz, radii, camera, per_m2, seed).poses))
+        raise _Drawn  # make_plan draws once ("every stage takes a prefix"): stop there
 
     monkeypatch.setattr(windows.PoseSample, "draw", classmethod(spy))
     layout = read_layout(ROOT / "layouts" / "grid-32.yaml", None)
     for per_m2, error in ((400.0, 4.0), (37.0, 0.0), (2000.0, 50.0)):
-        make_plan(layout, PlanOptions(poses_per_m2=per_m2, error_poses_per_m2=error))
+        with pytest.raises(_Drawn):
+            make_plan(layout, PlanOptions(poses_per_m2=per_m2, error_poses_per_m2=error))
         work = budget.plan_work(layout.xy, layout.outline, scheme="auto", verify=True, poses_per_m2=per_m2,
                                 error_poses_per_m2=error)
         assert work.samples["plan sample"] == drawn[-1] > 0
@@ -65,10 +69,7 @@ def test_commands_refuse_before_any_work(module, argv, tmp_path, capsys, monkeyp
     assert err.count("\n") == 1 and "camera poses" in err and "--max-poses" in err and not out.exists()
 
 
-def test_vlp_verify_refuses_before_sampling(tmp_path, capsys):
-    out = tmp_path / "p"
-    assert plan_cli.console_main([str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-report",
-                                  "--no-map", "--no-firmware"]) == 0
-    capsys.readouterr()
-    assert verify_cli.console_main([str(out / "plan.yaml"), "--poses-per-m2", "20000", "--max-poses", "100"]) == 2
+def test_vlp_verify_refuses_before_sampling(tmp_path, tmp_path_factory, capsys):
+    plan = grid32_copy(tmp_path_factory, tmp_path / "p", "--error-poses-per-m2", "0")  # planned once per run
+    assert verify_cli.console_main([str(plan), "--poses-per-m2", "20000", "--max-poses", "100"]) == 2
     assert "verification 160,000" in capsys.readouterr().err

@@ -31,8 +31,18 @@ def _apply(row: dict, tmp_path) -> list[str]:
     return flags
 
 
-def test_recommended_change_applied_reaches_the_goal(tmp_path):
-    code, before, err = _plan([str(LAYOUTS / "paper-rig.yaml"), "-o", str(tmp_path / "before")], tmp_path)
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    """The paper's rig planned once with its site report (no maps): exit code, JSON summary, stderr, folder."""
+    tmp = tmp_path_factory.mktemp("rig")
+    run = subprocess.run(["vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(tmp / "rig"), "--json", "--no-map"],
+                         capture_output=True, text=True, cwd=tmp)
+    assert "Traceback" not in run.stderr, run.stderr
+    return run.returncode, json.loads(run.stdout), run.stderr, tmp / "rig"
+
+
+def test_recommended_change_applied_reaches_the_goal(rig, tmp_path):
+    code, before, err, _ = rig
     advice = before["advice"]
     assert code == 3 and "NOT USABLE" in err
     assert not advice["usable"] and advice["coverage"] < advice["usable_from"] <= advice["goal"] == 0.9
@@ -123,11 +133,13 @@ def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     assert again.returncode == 0 and "NOT USABLE" in again.stderr
 
 
-def test_site_report_shows_the_advice_and_no_classes_under_the_window_scheme(tmp_path):
+def test_site_report_shows_the_advice_and_no_classes_under_the_window_scheme(rig, tmp_path):
+    import shutil
+
+    code, _, _, planned = rig
+    assert code == 3
     out = tmp_path / "rig"
-    run = subprocess.run(["vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(out), "--no-map"],
-                         capture_output=True, text=True)
-    assert run.returncode == 3
+    shutil.copytree(planned, out)  # edited below
     html = (out / "site-report.html").read_text()
     section = html[html.index('<h2 id="advice">'):html.index("<h2", html.index('<h2 id="advice">') + 1)]
     assert "NOT USABLE" in section and "Sampled figures, not proved" in section

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 
+import pytest
 import yaml
 
 from conftest import ROOT
@@ -49,9 +50,16 @@ def _sparse(tmp_path):
     (tmp_path / "house.yaml").write_text("unit: m\nheight: 2.6\nradius: 0.05\nluminaires:\n" + "\n".join(rows) + "\n")
 
 
-def test_a_site_no_mode_serves_gets_its_plan_verdict_and_advice_without_frames(tmp_path):
-    _sparse(tmp_path)
-    done = _run(["house.yaml", "--json"], tmp_path)
+@pytest.fixture(scope="module")
+def house(tmp_path_factory):
+    """The sparse house planned once with every output (``vlp-plan house.yaml --json``): the run and its folder."""
+    tmp = tmp_path_factory.mktemp("house")
+    _sparse(tmp)
+    return _run(["house.yaml", "--json"], tmp), tmp
+
+
+def test_a_site_no_mode_serves_gets_its_plan_verdict_and_advice_without_frames(house):
+    done, tmp_path = house
     assert done.returncode == 3, done.stderr
     summary = json.loads(done.stdout)
     assert summary["receiver"]["coverage"] == {"three": 0.0, "gravity": 0.0}
@@ -68,9 +76,8 @@ def test_a_site_no_mode_serves_gets_its_plan_verdict_and_advice_without_frames(t
     assert "NOT USABLE" in done.stderr
 
 
-def test_the_frameless_plan_reads_back_and_vlp_verify_judges_it(tmp_path):
-    _sparse(tmp_path)
-    _run(["house.yaml", "--no-report", "--no-map"], tmp_path)
+def test_the_frameless_plan_reads_back_and_vlp_verify_judges_it(house):
+    _, tmp_path = house  # vlp-verify only reads the plan: the folder stays as the test above reads it
     done = subprocess.run(["vlp-verify", "house-vlp/plan.yaml"], capture_output=True, text=True, cwd=tmp_path,
                           timeout=600)
     assert done.returncode == 3 and "Traceback" not in done.stderr, done.stderr

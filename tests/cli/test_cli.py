@@ -7,7 +7,7 @@ import sys
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, grid32_copy
 from planner.cli.plan import console_main, main
 
 LAYOUTS = ROOT / "layouts"
@@ -207,9 +207,9 @@ def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_
     assert v["ambiguous"] == 0 and v["window_set"]["read_alike"] == 0
 
 
-def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path):
-    main([str(LAYOUTS / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--json", "--scheme", "paper"])
-    result = subprocess.run([sys.executable, "-m", "planner.cli.verify", str(tmp_path / "o" / "plan.yaml"),
+def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path, tmp_path_factory):
+    plan = grid32_copy(tmp_path_factory, tmp_path / "o", "--error-poses-per-m2", "0")  # any plan: the map path is wrong
+    result = subprocess.run([sys.executable, "-m", "planner.cli.verify", str(plan),
                              "--map", str(tmp_path / "no" / "such" / "map.png")], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 2 and "does not exist" in result.stderr and "Traceback" not in result.stderr
 

@@ -44,11 +44,11 @@ def _check(fig) -> list:
 
 
 @pytest.fixture(scope="module")
-def plans():
+def plans(grid32_plan):
     def plan(name, leds=None, **kw):
         return make_plan(read_layout(ROOT / "layouts" / name, leds), PlanOptions(**{"error_poses_per_m2": 0, **kw}))
 
-    return {"grid-32": plan("grid-32.yaml", error_poses_per_m2=4.0),
+    return {"grid-32": grid32_plan,  # with its error map, planned once per worker (conftest)
             "grid-32 paper": plan("grid-32.yaml", scheme="paper"),
             "office": plan("dialux-office.dxf"),
             "grid-512 paper": plan("grid-512.yaml", 512, scheme="paper", verify=False)}

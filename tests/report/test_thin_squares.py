@@ -52,13 +52,10 @@ def test_error_map_of_enough_poses_hatches_nothing():
     assert [hatched_squares(ax) for ax in fig.axes[:2]] == [[], []] and fig.legends == []
 
 
-def test_error_map_squares_hold_enough_sampled_poses():
-    """The squares site_accuracy chooses hold ERROR_CELL_POSES sampled poses on average (were about 8)."""
-    from conftest import ROOT
-    from planner.layout.read import read_layout
-    from planner.plan.pipeline import PlanOptions, make_plan
-
-    p = make_plan(read_layout(ROOT / "layouts" / "grid-32.yaml", None), PlanOptions(error_poses_per_m2=4.0))
+def test_error_map_squares_hold_enough_sampled_poses(grid32_plan):
+    """The squares site_accuracy chooses hold ERROR_CELL_POSES sampled poses on average (were about 8): grid-32's
+    error map at 4 poses per m2."""
+    p = grid32_plan
     assert p.accuracy is not None
     assert p.accuracy.cell_m ** 2 * 4.0 >= ERROR_CELL_POSES
     *_, count = p.accuracy.cells()
