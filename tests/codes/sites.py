@@ -64,3 +64,28 @@ def square_lattice(n: int = 1024) -> Layout:
     from planner.studies.efficiency import lattice_layout
 
     return lattice_layout(n)
+
+
+def check_default_plan(layout: Layout, seed: int) -> None:
+    """Issue 34's Done-when on one large site: the default plan (without its error map) is proved complete,
+    reuses IDs within 2 bits of its proved window set's counting bound, and five fresh pose samples at ten
+    times the default density (seeds the planner never uses), each window against every physical triple,
+    find no ambiguous pose."""
+    from planner.codes.assignment import bits_for
+    from planner.plan.pipeline import PlanOptions, make_plan
+    from planner.verify.verify import AMBIGUOUS, classify, observe_site
+    from planner.verify.windows import POSES_PER_M2
+
+    plan = make_plan(layout, PlanOptions(error_poses_per_m2=0))
+    proved = plan.verification.window_set
+    assert proved is not None and proved.proved and proved.complete, proved
+    a = plan.assignment
+    counted = a.detail["window_set"]
+    assert counted["set"] == "proved" and counted["windows"] == proved.triangles
+    assert a.bits < bits_for(len(layout.luminaires)) and a.bits <= counted["lower_bound_bits"] + 2, (a.bits, counted)
+    xyz, radii = layout.xyz, np.array([lum.radius for lum in layout.luminaires])
+    for fresh in range(5):
+        obs = observe_site(xyz, radii, layout.outline, plan.camera, per_m2=10 * POSES_PER_M2, seed=seed + fresh)
+        verdict = classify(obs, a.ids)
+        assert verdict.count(AMBIGUOUS) == 0, (a.scheme, verdict.conflicts[:2])
+        assert verdict.poses > 100_000

@@ -5,13 +5,12 @@ import json
 import math
 
 import numpy as np
-import pytest
 
 from conftest import ROOT, grid_xy
 from planner.camera.model import Camera
 from planner.codes.assignment import Assignment, bits_for
 from planner.codes.schemes import proved_labels, window_set_bound
-from planner.verify.proof import Proof, possible_windows, prove_window_set
+from planner.verify.proof import Proof, prove_window_set
 from planner.verify.rivals import find_rivals
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M
 
@@ -157,23 +156,6 @@ def test_without_a_proof_the_bound_is_called_sampled():
     assert got == {"set": "sampled", "windows": 7, "lower_bound_labels": 2, "lower_bound_bits": 1}
     assert window_set_bound(Proof(None, "over budget", None), xyz, None) is None
     assert json.dumps(got)  # plain data for plan.yaml and --json
-
-
-@pytest.mark.slow
-def test_the_1024_lattice_is_labelled_within_two_bits_of_its_0cm_window_set():
-    """The 32 x 32 lattice against its window set at 0 cm install tolerance (the proof's budgets lifted:
-    the site is over them today): reuse, within 2 bits of the counting bound, independently checked."""
-    from sites import square_lattice
-
-    from planner.verify.envelope import envelope
-
-    lay = square_lattice(1024)
-    xyz, radii = lay.xyz, np.array([lum.radius for lum in lay.luminaires])
-    windows = possible_windows(xyz, radii, envelope(Camera(), xyz, radii, 0.0), budget=10 ** 7, pair_budget=10 ** 7)
-    got = proved_labels(windows, xyz, TOL)
-    assert got is not None and got.labels is not None and got.bits <= got.bound_bits + 2 < bits_for(1024)
-    assert got.bound_bits == bits_for(_counted_bound(windows, xyz))
-    assert find_rivals(windows, xyz, got.labels + 1, TOL) == []
 
 
 def test_the_test_sites_are_what_issue_34_describes():
