@@ -139,21 +139,29 @@ def main(argv: list[str] | None = None) -> int:
 def locate_image(plan: PlanFile, args: argparse.Namespace) -> int:
     """``--image``: decode the photo, locate it, print the result (with ``--json``, every blob)."""
     from planner.decode.image import FrameFormat
+    from planner.decode.tones import ToneFormat
     from planner.errors import PositioningError
     from planner.photo.asbuilt import blob_documents, locate_photo
-    from planner.photo.read import photo_blobs
+    from planner.photo.read import read_photo
     from planner.positioning.locate import Site
 
     camera = cli.camera_from_args(args, plan.camera_model())
-    site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
-    blobs = photo_blobs(args.image, camera, fmt)
+    tone_site = any(e.tone_hz is not None for e in plan.luminaires)
+    site = Site.from_plan(plan)
+    fmt: FrameFormat | ToneFormat = ToneFormat.from_plan(plan) if tone_site else FrameFormat.from_plan(plan)
+    blobs, note = read_photo(args.image, camera, fmt)
+    if note:
+        print(f"vlp-locate: note: {args.image}: {note}", file=sys.stderr)
     fix = locate_photo(site, blobs, camera, args.method, args.max_residual_px)
     doc: dict = result_document(site, None, fix.located, args.max_residual_px) if fix.located else {
         "position_m": None, "problem": fix.problem}
+    if fix.on_centres:
+        doc["position_from"] = "centres"
     if args.json:
         doc["photo"] = {"file": args.image, "camera": camera.name or None, "width_px": camera.width_px,
-                        "height_px": camera.height_px,
-                        "rows_per_chip": round(1 / (fmt.chip_rate_hz * camera.row_time_s), 3),
+                        "height_px": camera.height_px, "turned": note or None,
+                        **({"tones_hz": list(fmt.tones_hz)} if isinstance(fmt, ToneFormat) else
+                           {"rows_per_chip": round(1 / (fmt.chip_rate_hz * camera.row_time_s), 3)}),
                         "blobs": blob_documents(site, blobs, fix)}
     if fix.located is None and not args.json:
         raise PositioningError(f"{args.image}: {fix.problem} (--json lists every blob and why)")

@@ -24,10 +24,14 @@ included, and no threshold:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from scipy.optimize import minimize_scalar
+
+if TYPE_CHECKING:
+    from planner.plan.file import PlanFile
 
 LIT_DN = 25.0
 """A pixel belongs to an LED (its glow included) this far above the image's dark level [DN]."""
@@ -173,3 +177,21 @@ def match_tone(reading: ToneReading, tones_hz: np.ndarray) -> ToneMatch:
     if abs(z[best]) > MAX_Z:
         return ToneMatch(None, 0.0, float(abs(z[best])))
     return ToneMatch(best, float(weights[best] / weights.sum()), float(abs(z[best])))
+
+
+@dataclass(frozen=True)
+class ToneFormat:
+    """What a receiver knows of a tone site: the plan's distinct tones [Hz] and the ID (tone class) each names."""
+
+    tones_hz: tuple[float, ...]
+    ids: tuple[int, ...]
+
+    @classmethod
+    def from_plan(cls, plan: PlanFile) -> ToneFormat:
+        pairs = sorted({(float(e.tone_hz), int(e.id)) for e in plan.luminaires if e.tone_hz is not None})
+        return cls(tuple(t for t, _ in pairs), tuple(i for _, i in pairs))
+
+    @property
+    def lowest_hz(self) -> float:
+        """The lowest tone the LED finder closes stripes for: the plan's lowest less a quarter [Hz]."""
+        return 0.75 * min(self.tones_hz)

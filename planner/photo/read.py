@@ -19,6 +19,7 @@ proportional to the LED's drive over the row's exposure, on a dark ceiling. So:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -26,9 +27,11 @@ import numpy as np
 
 from planner.camera.model import Camera
 from planner.decode.image import FrameFormat
+from planner.decode.tones import ToneFormat
 from planner.defaults import MAX_IMAGE_PX, SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
 from planner.errors import InputError
 from planner.photo.decode import PhotoBlob, decode_photo
+from planner.photo.tones import decode_tone_photo
 
 LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)
 """Rec. 709 luminance weights in OpenCV's channel order (blue, green, red)."""
@@ -168,25 +171,96 @@ def receiver_frame(image: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(lum, out=lum), 0, 255, out=lum).astype(np.uint8)
 
 
-def load_photo(path: str | Path, camera: Camera) -> np.ndarray:
-    """A photo taken with ``camera``, as :func:`receiver_frame`; :class:`InputError` if unreadable or of another size."""
+STRIPE_RATIO = 1.3
+"""The LEDs' light must change this many times more across rows than across columns (or the reverse) for their
+stripes to count as running along the rows (columns): a round LED's rim changes it alike both ways."""
+
+
+def stripe_axis(frame: np.ndarray) -> str | None:
+    """``rows`` if the LEDs' stripes in ``frame`` (uint8, :func:`receiver_frame`) run along its rows (the light
+    changes from row to row, as the rolling shutter draws them), ``columns`` if along its columns (a turned photo),
+    None if neither shows (no LED, or steady ones). Summed over every pixel lit 25 DN above the ceiling."""
+    flat = frame.ravel()
+    width = frame.shape[1]
+    lit = np.flatnonzero(flat > np.median(frame[::7, ::7]) + 25)
+    lit = lit[(lit % width < width - 1) & (lit < flat.size - width)]
+    if len(lit) < 40:
+        return None
+    here = flat[lit].astype(np.int16)
+    across_rows = float(np.abs(flat[lit + width] - here).sum())
+    across_columns = float(np.abs(flat[lit + 1] - here).sum())
+    if across_rows > STRIPE_RATIO * across_columns:
+        return "rows"
+    return "columns" if across_columns > STRIPE_RATIO * across_rows else None
+
+
+@dataclass(frozen=True)
+class Photo:
+    """A photo as the receiver reads it: its frame in the sensor's orientation (:func:`receiver_frame`), the
+    quarter turns (``np.rot90``'s sense) that brought the file's pixels there, and a note saying so ("" if none)."""
+
+    frame: np.ndarray
+    turns: int = 0
+    note: str = ""
+
+
+def load_photo(path: str | Path, camera: Camera) -> Photo:
+    """A photo taken with ``camera``, as :func:`receiver_frame`, turned back to the sensor's rows if the phone turned
+    its pixels (a portrait photo: the file is the camera's height wide, its stripes run along columns); the
+    turn is said in the photo's note. :class:`InputError` if unreadable, of another size, or striped across the
+    way its size says."""
     image = read_image(path)
     h, w = image.shape[:2]
-    if (w, h) != (camera.width_px, camera.height_px):
-        turned = " (turned: give the photo as the sensor wrote it)" if (h, w) == (camera.width_px, camera.height_px) else ""
-        named = f"camera {camera.name!r}" if camera.name else "the camera"
-        raise InputError(f"{path}: the photo is {w} x {h} px but {named} takes {camera.width_px} x {camera.height_px} "
-                         f"px{turned}; give the camera that took it (--camera NAME or YAML) and the photo as the phone "
-                         "saved it, not resized or cropped")
-    return receiver_frame(image)
+    size = (camera.width_px, camera.height_px)
+    named = f"camera {camera.name!r}" if camera.name else "the camera"
+    if (w, h) != size and (h, w) != size:
+        raise InputError(f"{path}: the photo is {w} x {h} px but {named} takes {size[0]} x {size[1]} px; give the "
+                         "camera that took it (--camera NAME or YAML) and the photo as the phone saved it, not resized "
+                         "or cropped")
+    frame = receiver_frame(image)
+    del image
+    axis = stripe_axis(frame)
+    if (w, h) == size and (axis != "columns" or w != h):
+        if axis == "columns":
+            raise InputError(f"{path}: the LEDs' stripes run along the photo's columns, but a {w} x {h} px photo of "
+                             f"{named} has its rolling shutter's rows as rows; give the camera file as the sensor "
+                             f"reads ({h} x {w} px), or check that the photo was not turned and resized")
+        return Photo(frame)
+    if axis == "rows" and w != h:
+        raise InputError(f"{path}: the photo is {w} x {h} px, {named}'s {size[0]} x {size[1]} turned, but its LEDs' "
+                         "stripes run along its rows as they would unturned; it was resized or cropped, or taken "
+                         "with another camera: give the photo as the phone saved it and the camera that took it")
+    return Photo(np.ascontiguousarray(np.rot90(frame, 1)), 1,
+                 f"the photo's pixels are turned a quarter (a portrait photo, {w} x {h} px, its LEDs' stripes "
+                 "along its columns): read turned back a quarter counter-clockwise to the sensor's rows; ellipses "
+                 "and blob boxes are in the sensor's pixels")
 
 
-def photo_blobs(path: str | Path, camera: Camera, modulation: FrameFormat) -> list[PhotoBlob]:
-    """Every LED blob of the photo at ``path`` taken with ``camera``, decoded with the site's ``modulation``.
+def read_photo(path: str | Path, camera: Camera, modulation: FrameFormat | ToneFormat) -> tuple[list[PhotoBlob], str]:
+    """Every LED blob of the photo at ``path`` taken with ``camera``, decoded with the site's ``modulation`` (a
+    frame or a tone site), and the photo's note (:class:`Photo`).
 
     The exposure and blur of a phone photo are not known; the twin's defaults
     (:data:`~planner.defaults.SENSOR_EXPOSURE_S`, :data:`~planner.defaults.SENSOR_BLUR_PX`) set the
-    stripe closing and the fit's slack, which have margin for either.
+    stripe closing and the fit's slack, which have margin for either. A turned photo's rows may run either way
+    in time: a frame site's photo is read turned the other way too when fewer than three IDs read (a tone's
+    frequency, and so a tone site's reading, is the same either way).
     """
-    return decode_photo(load_photo(path, camera), camera, modulation, blur_px=SENSOR_BLUR_PX,
-                        exposure_s=SENSOR_EXPOSURE_S)
+    photo = load_photo(path, camera)
+    if isinstance(modulation, ToneFormat):
+        return decode_tone_photo(photo.frame, camera, modulation), photo.note
+    blobs = _frame_blobs(photo.frame, camera, modulation)
+    if photo.turns and sum(b.id is not None for b in blobs) < 3:
+        other = _frame_blobs(np.ascontiguousarray(np.rot90(photo.frame, 2)), camera, modulation)
+        if sum(b.id is not None for b in other) > sum(b.id is not None for b in blobs):
+            return other, photo.note.replace("counter-clockwise", "clockwise")
+    return blobs, photo.note
+
+
+def _frame_blobs(frame: np.ndarray, camera: Camera, modulation: FrameFormat) -> list[PhotoBlob]:
+    return decode_photo(frame, camera, modulation, blur_px=SENSOR_BLUR_PX, exposure_s=SENSOR_EXPOSURE_S)
+
+
+def photo_blobs(path: str | Path, camera: Camera, modulation: FrameFormat | ToneFormat) -> list[PhotoBlob]:
+    """:func:`read_photo`'s blobs."""
+    return read_photo(path, camera, modulation)[0]
