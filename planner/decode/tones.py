@@ -121,11 +121,11 @@ def stripe_frequency(profile: np.ndarray, width: np.ndarray) -> tuple[float, flo
     return cycles, float(np.sqrt(max(cov[-1, -1], 0.0)))
 
 
-def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], row_time_s: float,
-              dark_dn: float) -> ToneReading:
-    """The tone of the LED at ``box`` whose closed mask is ``mask`` (:func:`find_tone_leds`) [Hz]: each row's light
-    above ``dark_dn`` summed over the mask, every row of the mask, columns through a saturated core left out
-    (module notes, 2)."""
+def row_profile(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int],
+                dark_dn: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's light above ``dark_dn`` summed over the LED's closed ``mask`` at ``box`` (:func:`find_tone_leds`),
+    every row of the mask, columns through a saturated core left out (module notes, 2); and the pixels summed in
+    each row (the envelope). ``profile / width`` is the row's mean light: the LED's drive over its exposure."""
     u0, v0, u1, v1 = box
     pixels = image[v0:v1 + 1, u0:u1 + 1]
     full = pixels >= SATURATED_DN
@@ -137,8 +137,14 @@ def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int
     clear = ~near  # the glow beside the core
     keep = mask & clear[None, :] if clear.any() else mask
     block = np.clip(pixels.astype(float) - dark_dn, 0.0, None)
-    width = keep.sum(axis=1).astype(float)
-    profile = (block * keep).sum(axis=1)
+    return (block * keep).sum(axis=1), keep.sum(axis=1).astype(float)
+
+
+def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], row_time_s: float,
+              dark_dn: float) -> ToneReading:
+    """The tone of the LED at ``box`` whose closed mask is ``mask`` (:func:`find_tone_leds`) [Hz], from its
+    :func:`row_profile`."""
+    profile, width = row_profile(image, mask, box, dark_dn)
     cycles, sigma = stripe_frequency(profile, width)
     return ToneReading(cycles / row_time_s, sigma / row_time_s, len(profile), cycles * len(profile), box)
 

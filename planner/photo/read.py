@@ -31,7 +31,7 @@ from planner.decode.tones import ToneFormat
 from planner.defaults import MAX_IMAGE_PX, SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
 from planner.errors import InputError
 from planner.photo.decode import PhotoBlob, decode_photo
-from planner.photo.tones import decode_tone_photo
+from planner.photo.small import decode_small_photo
 
 LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)
 """Rec. 709 luminance weights in OpenCV's channel order (blue, green, red)."""
@@ -240,24 +240,36 @@ def read_photo(path: str | Path, camera: Camera, modulation: FrameFormat | ToneF
     """Every LED blob of the photo at ``path`` taken with ``camera``, decoded with the site's ``modulation`` (a
     frame or a tone site), and the photo's note (:class:`Photo`).
 
-    The exposure and blur of a phone photo are not known; the twin's defaults
-    (:data:`~planner.defaults.SENSOR_EXPOSURE_S`, :data:`~planner.defaults.SENSOR_BLUR_PX`) set the
-    stripe closing and the fit's slack, which have margin for either. A turned photo's rows may run either way
-    in time: a frame site's photo is read turned the other way too when fewer than three IDs read (a tone's
-    frequency, and so a tone site's reading, is the same either way).
+    A tone site's LEDs are read as small LEDs in a glow (:mod:`planner.photo.small`). A frame site's are read as
+    the receiver twin reads them (:mod:`planner.photo.decode`), and as small LEDs where that reads fewer than
+    three IDs; a turned photo's rows may run either way in time, so it is read turned the other way too while
+    fewer than three read (a tone's frequency is the same either way). The exposure and blur of a phone photo are
+    not known; the twin's defaults (:data:`~planner.defaults.SENSOR_EXPOSURE_S`,
+    :data:`~planner.defaults.SENSOR_BLUR_PX`) set the stripe closing and the fit's slack, which have margin.
     """
     photo = load_photo(path, camera)
     if isinstance(modulation, ToneFormat):
-        return decode_tone_photo(photo.frame, camera, modulation), photo.note
-    blobs = _frame_blobs(photo.frame, camera, modulation)
-    if photo.turns and sum(b.id is not None for b in blobs) < 3:
-        other = _frame_blobs(np.ascontiguousarray(np.rot90(photo.frame, 2)), camera, modulation)
-        if sum(b.id is not None for b in other) > sum(b.id is not None for b in blobs):
-            return other, photo.note.replace("counter-clockwise", "clockwise")
-    return blobs, photo.note
+        return decode_small_photo(photo.frame, camera, modulation), photo.note
+    best: list[PhotoBlob] | None = None
+    note = photo.note
+    for turned in range(2 if photo.turns else 1):
+        frame = np.ascontiguousarray(np.rot90(photo.frame, 2)) if turned else photo.frame
+        for decode in (_frame_blobs, decode_small_photo):
+            blobs = decode(frame, camera, modulation)
+            if best is None or _read(blobs) > _read(best):
+                best, note = blobs, photo.note.replace("counter-clockwise", "clockwise") if turned else photo.note
+            if _read(best) >= 3:
+                return best, note
+    assert best is not None
+    return best, note
 
 
-def _frame_blobs(frame: np.ndarray, camera: Camera, modulation: FrameFormat) -> list[PhotoBlob]:
+def _read(blobs: list[PhotoBlob]) -> int:
+    return sum(b.id is not None for b in blobs)
+
+
+def _frame_blobs(frame: np.ndarray, camera: Camera, modulation: FrameFormat | ToneFormat) -> list[PhotoBlob]:
+    assert isinstance(modulation, FrameFormat)
     return decode_photo(frame, camera, modulation, blur_px=SENSOR_BLUR_PX, exposure_s=SENSOR_EXPOSURE_S)
 
 
