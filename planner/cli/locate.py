@@ -138,17 +138,14 @@ def main(argv: list[str] | None = None) -> int:
 
 def locate_image(plan: PlanFile, args: argparse.Namespace) -> int:
     """``--image``: decode the photo, locate it, print the result (with ``--json``, every blob)."""
-    from planner.decode.image import FrameFormat
     from planner.decode.tones import ToneFormat
     from planner.errors import PositioningError
     from planner.photo.asbuilt import blob_documents, locate_photo
-    from planner.photo.read import read_photo
+    from planner.photo.read import read_photo, site_format
     from planner.positioning.locate import Site
 
     camera = cli.camera_from_args(args, plan.camera_model())
-    tone_site = any(e.tone_hz is not None for e in plan.luminaires)
-    site = Site.from_plan(plan)
-    fmt: FrameFormat | ToneFormat = ToneFormat.from_plan(plan) if tone_site else FrameFormat.from_plan(plan)
+    site, fmt = Site.from_plan(plan), site_format(plan)
     blobs, note = read_photo(args.image, camera, fmt)
     if note:
         print(f"vlp-locate: note: {args.image}: {note}", file=sys.stderr)

@@ -115,6 +115,15 @@ def _check(plan_path, camera_path, photos):
     return errors, np.array(tone_errors)
 
 
+def _figures(errors, tones) -> str:
+    """What docs/photos.md quotes (``pytest -s``): per orientation, poses within 10 cm, median and largest error."""
+    out = [f"{name}: {sum(x < 0.10 for x in e)} of {len(e)} within 10 cm, median {100 * np.median(e):.2f} cm, "
+           f"max {100 * max(e):.2f} cm" for name, e in errors.items()]
+    if len(tones):
+        out.append(f"tones: {len(tones)} read, median error {100 * np.median(tones):.2f} %, max {100 * tones.max():.2f} %")
+    return "; ".join(out)
+
+
 @pytest.fixture(scope="module")
 def small(tone_plan, tmp_path_factory):
     """Two poses at a quarter of the pixels (``--camera`` names the phone that took them; the plan is the 33 MP's)."""
@@ -164,6 +173,7 @@ def test_tone_blobs_say_their_tone_and_its_match(small):
 def test_twenty_33_mp_tone_photos_locate_within_10_cm(full):
     """The Done-when's figures: at least 19 of 20 poses within 10 cm in each orientation; every tone within 2 %."""
     errors, tones = _check(*full)
+    print(_figures(errors, tones))
     for name, e in errors.items():
         assert sum(x < 0.10 for x in e) >= 19, (name, e)
     assert len(tones) >= 19 * 5 * 2 and tones.max() <= 0.02, tones.max()
@@ -178,6 +188,7 @@ def test_a_frame_site_photo_of_small_leds_locates_landscape_and_turned_either_wa
 
 @pytest.mark.slow
 def test_twenty_33_mp_frame_site_photos_locate_within_10_cm(frames_full):
-    errors, _ = _check(*frames_full)
+    errors, tones = _check(*frames_full)
+    print(_figures(errors, tones))
     for name, e in errors.items():
         assert sum(x < 0.10 for x in e) >= 19, (name, e)
