@@ -2,7 +2,7 @@
 
 Prints JSON: position [m], method, RMS ellipse residual [px], the luminaires used and
 the camera's orientation. ``--image`` decodes a phone photo first (:mod:`planner.photo`;
-with ``--json`` every LED blob found is listed, read or not). ``--simulate`` writes the
+with ``--json`` every LED blob found is listed, read or not; a tone site's LEDs by their tones). ``--simulate`` writes the
 observation a pose would give instead (the receiver twin's reference output). Exit codes: 0 position found,
 3 no trustworthy position (too few or collinear LEDs, no pose explains the image,
 two places fit), 1 bad input (unreadable file, ID not in the plan), 2 usage.
@@ -41,8 +41,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("observation", metavar="OBSERVATION.json", nargs="?",
                    help="the receiver's camera and LED ellipses (JSON)")
     p.add_argument("--image", metavar="PHOTO",
-                   help="instead of OBSERVATION.json, a photo of the ceiling (JPEG or PNG, as the phone saved it): "
-                   "every LED blob is found and decoded, then located (docs/photos.md)")
+                   help="instead of OBSERVATION.json, a photo of the ceiling (JPEG or PNG, as the phone saved it; a "
+                   "portrait file with turned pixels is turned back): every LED blob is found and its frame or tone "
+                   "read, then located (docs/photos.md, docs/tones.md)")
     cli.add_camera_flag(p, "with --image: the camera that took the photo; default: the plan's camera")
     p.add_argument("--method", choices=list(LOCATE_METHODS), default="perspective",
                    help="perspective: exact pose fit over every LED (default); paper: the paper's weak-perspective "
