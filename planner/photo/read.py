@@ -20,6 +20,7 @@ proportional to the LED's drive over the row's exposure, on a dark ceiling. So:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -119,16 +120,28 @@ def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4)).astype(np.float32)
 
 
+BAND_ROWS = 256
+"""Rows of a colour photo made linear at a time: a 33 MP photo's three float channels would take 400 MB at once."""
+
+
 def linear_luminance(image: np.ndarray) -> np.ndarray:
     """Linear relative luminance 0..1 (float32, height x width) of an sRGB image (grey or BGR, 8 or 16 bit)."""
-    top = 255 if image.dtype == np.uint8 else 65535
+    if image.ndim == 3:  # by bands of rows: one float32 luminance plane at the end, not three
+        out = np.empty(image.shape[:2], np.float32)
+        for r in range(0, image.shape[0], BAND_ROWS):
+            out[r:r + BAND_ROWS] = linear_luminance(image[r:r + BAND_ROWS, :, 0]) * LUMA_BGR[0]
+            for c in (1, 2):
+                out[r:r + BAND_ROWS] += linear_luminance(image[r:r + BAND_ROWS, :, c]) * LUMA_BGR[c]
+        return out
     if image.dtype == np.uint8:  # a table: 12 M pixels through pow() would take a second
-        lin = srgb_to_linear(np.arange(256) / 255.0)[image]
-    else:
-        lin = srgb_to_linear(image / float(top))
-    if lin.ndim == 2:
-        return lin
-    return np.tensordot(lin[..., :3], LUMA_BGR, axes=([2], [0])).astype(np.float32)
+        return _table8()[image]
+    return srgb_to_linear(image / 65535.0)
+
+
+@lru_cache(maxsize=1)
+def _table8() -> np.ndarray:
+    """Linear light of each 8-bit sRGB code."""
+    return srgb_to_linear(np.arange(256) / 255.0)
 
 
 def _design(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -171,10 +184,10 @@ def _mad(v: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(v - np.median(v))))
 
 
-def receiver_frame(image: np.ndarray) -> np.ndarray:
-    """The photo as a twin frame (uint8): linear luminance above the fitted ceiling, 0..1 to 0..255 DN on
-    :data:`DARK_DN`; where an LED saturated, its plateau is flat at ``255 (1 - ceiling)``."""
-    lum = linear_luminance(image)
+def receiver_frame(lum: np.ndarray) -> np.ndarray:
+    """The photo as a twin frame (uint8) from its :func:`linear_luminance` (float32, reused in place): linear
+    luminance above the fitted ceiling, 0..1 to 0..255 DN on :data:`DARK_DN`; where an LED saturated, its plateau
+    is flat at ``255 (1 - ceiling)``."""
     lum -= ceiling(lum)
     lum *= 255.0
     lum += DARK_DN
@@ -227,8 +240,10 @@ def load_photo(path: str | Path, camera: Camera) -> Photo:
         raise InputError(f"{path}: the photo is {w} x {h} px but {named} takes {size[0]} x {size[1]} px; give the "
                          "camera that took it (--camera NAME or YAML) and the photo as the phone saved it, not resized "
                          "or cropped")
-    frame = receiver_frame(image)
-    del image
+    lum = linear_luminance(image)
+    del image  # a colour 33 MP photo: 100 MB freed before the ceiling's full-size plane is made
+    frame = receiver_frame(lum)
+    del lum
     axis = stripe_axis(frame)
     if (w, h) == size and (axis != "columns" or w != h):
         if axis == "columns":

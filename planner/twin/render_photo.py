@@ -32,9 +32,9 @@ def _encode_table() -> np.ndarray:
 
 def phone_photo(frame: np.ndarray, rng: np.random.Generator, *, quality: int = 90, bloom_share: float = BLOOM_SHARE,
                 read_noise_dn: float = 1.0, turn: int = 0) -> bytes:
-    """The JPEG (``quality`` 0-100) a phone saves of ``frame`` (uint8 linear DN, a twin frame): blooming, sRGB
-    8 bits with ``read_noise_dn`` [DN of 255] after the tone curve, and the pixels turned ``turn`` quarters
-    counter-clockwise (1 or -1: a portrait photo; ``np.rot90``'s sense)."""
+    """The colour JPEG (``quality`` 0-100, white light) a phone saves of ``frame`` (uint8 linear DN, a twin frame):
+    blooming, sRGB 8 bits with ``read_noise_dn`` [DN of 255] after the tone curve, and the pixels turned ``turn``
+    quarters counter-clockwise (1 or -1: a portrait photo; ``np.rot90``'s sense)."""
     light = frame.astype(np.float32)
     if bloom_share > 0:
         small = cv2.resize(light, None, fx=0.25, fy=0.25, interpolation=cv2.INTER_AREA)  # a wide blur, at a 16th
@@ -52,7 +52,7 @@ def phone_photo(frame: np.ndarray, rng: np.random.Generator, *, quality: int = 9
         encoded = np.clip(np.rint(noise, out=noise), 0, 255, out=noise).astype(np.uint8)
     if turn:
         encoded = np.ascontiguousarray(np.rot90(encoded, turn))
-    ok, data = cv2.imencode(".jpg", encoded, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    ok, data = cv2.imencode(".jpg", cv2.cvtColor(encoded, cv2.COLOR_GRAY2BGR), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise RuntimeError("OpenCV could not encode the photo as JPEG")
     return data.tobytes()
