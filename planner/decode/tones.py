@@ -164,7 +164,9 @@ def row_profile(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, i
     for k in range(SATURATED_ROWS):
         run &= full[k:len(full) - SATURATED_ROWS + 1 + k]
     clipped = run.any(axis=0)
-    near = np.convolve(clipped, np.ones(2 * CORE_MARGIN_PX + 1), mode="same") > 0  # and the core's blurred rim
+    # and the core's blurred rim ("full", cut to the LED's columns: "same" returns the kernel's length on an LED
+    # narrower than it)
+    near = np.convolve(clipped, np.ones(2 * CORE_MARGIN_PX + 1))[CORE_MARGIN_PX:CORE_MARGIN_PX + pixels.shape[1]] > 0
     clear = ~near  # the glow beside the core
     keep = mask & clear[None, :] if clear.any() else mask
     block = np.clip(pixels.astype(float) - dark_dn, 0.0, None)

@@ -229,9 +229,10 @@ class Photo:
 
 def load_photo(path: str | Path, camera: Camera) -> Photo:
     """A photo taken with ``camera``, as :func:`receiver_frame`, turned back to the sensor's rows if the phone turned
-    its pixels (a portrait photo: the file is the camera's height wide, its stripes run along columns); the
-    turn is said in the photo's note. :class:`InputError` if unreadable, of another size, or striped across the
-    way its size says."""
+    its pixels (a portrait photo: the file is the camera's height wide; a square one, its stripes along columns);
+    the turn, or stripes that run across the way the size says (:func:`stripe_axis`), said in the photo's note
+    (the size decides: a lamp of another shape may sway the stripes' measure). :class:`InputError` if unreadable
+    or of another size."""
     image = read_image(path)
     h, w = image.shape[:2]
     size = (camera.width_px, camera.height_px)
@@ -246,19 +247,17 @@ def load_photo(path: str | Path, camera: Camera) -> Photo:
     del lum
     axis = stripe_axis(frame)
     if (w, h) == size and (axis != "columns" or w != h):
-        if axis == "columns":
-            raise InputError(f"{path}: the LEDs' stripes run along the photo's columns, but a {w} x {h} px photo of "
-                             f"{named} has its rolling shutter's rows as rows; give the camera file as the sensor "
-                             f"reads ({h} x {w} px), or check that the photo was not turned and resized")
-        return Photo(frame)
-    if axis == "rows" and w != h:
-        raise InputError(f"{path}: the photo is {w} x {h} px, {named}'s {size[0]} x {size[1]} turned, but its LEDs' "
-                         "stripes run along its rows as they would unturned; it was resized or cropped, or taken "
-                         "with another camera: give the photo as the phone saved it and the camera that took it")
+        return Photo(frame, 0, "" if axis != "columns" else (
+            f"the LEDs' stripes seem to run along the photo's columns, but a {w} x {h} px photo of {named} has its "
+            "rolling shutter's rows as rows: read as saved; if no LED reads, give the camera file as the sensor "
+            f"reads ({h} x {w} px), or check that the photo was not turned and resized"))
+    unturned = ("; its LEDs' stripes seem to run along its rows, as they would unturned: if no LED reads, it was "
+                "resized or cropped, or taken with another camera") if axis == "rows" and w != h else ""
+    along = ", its LEDs' stripes along its columns" if axis == "columns" else ""
     return Photo(np.ascontiguousarray(np.rot90(frame, 1)), 1,
-                 f"the photo's pixels are turned a quarter (a portrait photo, {w} x {h} px, its LEDs' stripes "
-                 "along its columns): read turned back a quarter counter-clockwise to the sensor's rows; ellipses "
-                 "and blob boxes are in the sensor's pixels")
+                 f"the photo's pixels are turned a quarter (a portrait photo, {w} x {h} px{along}): read turned back a "
+                 "quarter counter-clockwise to the sensor's rows; ellipses and blob boxes are in the sensor's pixels"
+                 f"{unturned}")
 
 
 def read_photo(path: str | Path, camera: Camera, modulation: FrameFormat | ToneFormat) -> tuple[list[PhotoBlob], str]:

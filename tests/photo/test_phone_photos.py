@@ -199,12 +199,15 @@ def test_twenty_33_mp_frame_site_photos_locate_within_10_cm(frames_full):
         assert sum(x < 0.10 for x in e) >= 19, (name, e)
 
 
-def test_stripes_across_the_way_the_size_says_are_one_line(small, tmp_path):
+def test_stripes_across_the_way_the_size_says_are_noted(small, tmp_path):
     """A camera file given portrait (its rows the sensor's columns): the landscape photo is its size turned but
-    striped along its rows, the portrait file its size but striped along its columns; each refused in one line."""
+    striped along its rows, the portrait file its size but striped along its columns; the size decides how each is
+    read, the note says what the stripes showed, and neither locates (a frame's rows are the sensor's)."""
     plan, _, photos = small
     portrait = _camera(tmp_path, {**SMALL, "width_px": SMALL["height_px"], "height_px": SMALL["width_px"]})
-    for name, what in (("landscape", "its LEDs' stripes run along its rows as they would unturned"),
-                       ("portrait", "the LEDs' stripes run along the photo's columns")):
+    for name, what in (("landscape", "its LEDs' stripes seem to run along its rows, as they would unturned"),
+                       ("portrait", "the LEDs' stripes seem to run along the photo's columns")):
         code, out, err = _located(plan, portrait, photos[1][1][name])
-        assert code == 1 and out is None and what in err and len(err.strip().splitlines()) == 1, err
+        lines = err.strip().splitlines()
+        assert code == 3 and out["position_m"] is None and len(lines) == 2, err
+        assert lines[0].startswith("vlp-locate: note: ") and what in lines[0] and "error" in lines[1], err
