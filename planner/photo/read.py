@@ -126,16 +126,16 @@ BAND_ROWS = 256
 
 def linear_luminance(image: np.ndarray) -> np.ndarray:
     """Linear relative luminance 0..1 (float32, height x width) of an sRGB image (grey or BGR, 8 or 16 bit)."""
-    if image.ndim == 3:  # by bands of rows: one float32 luminance plane at the end, not three
-        out = np.empty(image.shape[:2], np.float32)
-        for r in range(0, image.shape[0], BAND_ROWS):
-            out[r:r + BAND_ROWS] = linear_luminance(image[r:r + BAND_ROWS, :, 0]) * LUMA_BGR[0]
-            for c in (1, 2):
-                out[r:r + BAND_ROWS] += linear_luminance(image[r:r + BAND_ROWS, :, c]) * LUMA_BGR[c]
-        return out
-    if image.dtype == np.uint8:  # a table: 12 M pixels through pow() would take a second
-        return _table8()[image]
-    return srgb_to_linear(image / 65535.0)
+    if image.dtype != np.uint8:
+        lin = srgb_to_linear(image / 65535.0)
+        return lin if lin.ndim == 2 else np.tensordot(lin[..., :3], LUMA_BGR, axes=([2], [0])).astype(np.float32)
+    if image.ndim == 2:  # a table: 12 M pixels through pow() would take a second
+        return cv2.LUT(image, _table8())
+    out = np.empty(image.shape[:2], np.float32)  # by bands of rows: one float32 plane at the end, not three
+    weights = LUMA_BGR.reshape(1, 3)
+    for r in range(0, image.shape[0], BAND_ROWS):
+        out[r:r + BAND_ROWS] = cv2.transform(cv2.LUT(image[r:r + BAND_ROWS], _table8()), weights).reshape(-1, image.shape[1])
+    return out
 
 
 @lru_cache(maxsize=1)
