@@ -2,7 +2,7 @@
 
 Prints JSON: position [m], method, RMS ellipse residual [px], the luminaires used and
 the camera's orientation. ``--image`` decodes a phone photo first (:mod:`planner.photo`;
-with ``--json`` every LED blob found is listed, read or not). ``--simulate`` writes the
+with ``--json`` every LED blob found is listed, read or not; a tone site's LEDs by their tones). ``--simulate`` writes the
 observation a pose would give instead (the receiver twin's reference output). Exit codes: 0 position found,
 3 no trustworthy position (too few or collinear LEDs, no pose explains the image,
 two places fit), 1 bad input (unreadable file, ID not in the plan), 2 usage.
@@ -41,8 +41,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("observation", metavar="OBSERVATION.json", nargs="?",
                    help="the receiver's camera and LED ellipses (JSON)")
     p.add_argument("--image", metavar="PHOTO",
-                   help="instead of OBSERVATION.json, a photo of the ceiling (JPEG or PNG, as the phone saved it): "
-                   "every LED blob is found and decoded, then located (docs/photos.md)")
+                   help="instead of OBSERVATION.json, a photo of the ceiling (JPEG or PNG, as the phone saved it; a "
+                   "portrait file with turned pixels is turned back): every LED blob is found and its frame or tone "
+                   "read, then located (docs/photos.md, docs/tones.md)")
     cli.add_camera_flag(p, "with --image: the camera that took the photo; default: the plan's camera")
     p.add_argument("--method", choices=list(LOCATE_METHODS), default="perspective",
                    help="perspective: exact pose fit over every LED (default); paper: the paper's weak-perspective "
@@ -138,22 +139,27 @@ def main(argv: list[str] | None = None) -> int:
 
 def locate_image(plan: PlanFile, args: argparse.Namespace) -> int:
     """``--image``: decode the photo, locate it, print the result (with ``--json``, every blob)."""
-    from planner.decode.image import FrameFormat
+    from planner.decode.tones import ToneFormat
     from planner.errors import PositioningError
     from planner.photo.asbuilt import blob_documents, locate_photo
-    from planner.photo.read import photo_blobs
+    from planner.photo.read import read_photo, site_format
     from planner.positioning.locate import Site
 
     camera = cli.camera_from_args(args, plan.camera_model())
-    site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
-    blobs = photo_blobs(args.image, camera, fmt)
+    site, fmt = Site.from_plan(plan), site_format(plan)
+    blobs, note = read_photo(args.image, camera, fmt)
+    if note:
+        print(f"vlp-locate: note: {args.image}: {note}", file=sys.stderr)
     fix = locate_photo(site, blobs, camera, args.method, args.max_residual_px)
     doc: dict = result_document(site, None, fix.located, args.max_residual_px) if fix.located else {
         "position_m": None, "problem": fix.problem}
+    if fix.on_centres:
+        doc["position_from"] = "centres"
     if args.json:
         doc["photo"] = {"file": args.image, "camera": camera.name or None, "width_px": camera.width_px,
-                        "height_px": camera.height_px,
-                        "rows_per_chip": round(1 / (fmt.chip_rate_hz * camera.row_time_s), 3),
+                        "height_px": camera.height_px, "turned": note or None,
+                        **({"tones_hz": list(fmt.tones_hz)} if isinstance(fmt, ToneFormat) else
+                           {"rows_per_chip": round(1 / (fmt.chip_rate_hz * camera.row_time_s), 3)}),
                         "blobs": blob_documents(site, blobs, fix)}
     if fix.located is None and not args.json:
         raise PositioningError(f"{args.image}: {fix.problem} (--json lists every blob and why)")

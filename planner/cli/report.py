@@ -100,10 +100,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def photo_check(plan: PlanFile, args: argparse.Namespace) -> dict:
     """``--photos``: decode and locate every photo in the folder; the report's as-built section."""
-    from planner.decode.image import FrameFormat
     from planner.errors import InputError
     from planner.photo.asbuilt import PhotoCheck, check_photo
-    from planner.photo.read import SUFFIXES, photo_blobs
+    from planner.photo.read import SUFFIXES, photo_blobs, site_format
     from planner.positioning.locate import Site
     from planner.report.asbuilt import asbuilt_section
 
@@ -114,7 +113,7 @@ def photo_check(plan: PlanFile, args: argparse.Namespace) -> dict:
     if not files:
         raise UsageError(f"--photos {folder}: no {', '.join(SUFFIXES)} photos in it")
     camera = cli.camera_from_args(args, plan.camera_model())
-    site, fmt = Site.from_plan(plan), FrameFormat.from_plan(plan)
+    site, fmt = Site.from_plan(plan), site_format(plan)
     checks = []
     for k, path in enumerate(files, 1):
         cli.progress(f"photo {k} of {len(files)}: {path.name}")

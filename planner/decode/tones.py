@@ -24,10 +24,14 @@ included, and no threshold:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from scipy.optimize import minimize_scalar
+
+if TYPE_CHECKING:
+    from planner.plan.file import PlanFile
 
 LIT_DN = 25.0
 """A pixel belongs to an LED (its glow included) this far above the image's dark level [DN]."""
@@ -61,20 +65,39 @@ class ToneReading:
     box: tuple[int, int, int, int]
 
 
+TILE_PX = 16
+"""Side of the tiles the LEDs are first found in [px]: the closing and labelling then run on the tiles lit only."""
+
+
 def find_tone_leds(image: np.ndarray, row_time_s: float, lowest_hz: float) -> list[tuple[np.ndarray, tuple]]:
     """Each LED of ``image`` (8-bit, rows x columns): its closed mask and box (u0, v0, u1, v1); the gaps between
-    stripes of tones down to ``lowest_hz`` [Hz] are closed."""
-    dark = float(np.median(image))
-    lit = (image.astype(np.float32) > dark + LIT_DN).astype(np.uint8)
+    stripes of tones down to ``lowest_hz`` [Hz] are closed. The lit pixels are grouped by :data:`TILE_PX` tiles
+    first (a 33 MP photo's LEDs cover under 1 % of it), each group closed and labelled on its own."""
+    height, width = image.shape
+    lit = image > float(np.median(image[::7, ::7])) + LIT_DN
     gap = max(1, int(np.ceil(0.5 / (lowest_hz * row_time_s))))  # half the longest period [rows]
-    closed = cv2.morphologyEx(lit, cv2.MORPH_CLOSE, np.ones((gap + 1, 1), np.uint8))
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    th, tw = -(-height // TILE_PX), -(-width // TILE_PX)
+    padded = np.zeros((th * TILE_PX, tw * TILE_PX), bool)
+    padded[:height, :width] = lit
+    tiles = np.asarray(padded.reshape(th, TILE_PX, tw, TILE_PX).any(axis=(1, 3)), dtype=np.uint8)
+    reach = gap // TILE_PX + 1  # tiles a closed gap may bridge
+    grown = cv2.dilate(tiles, np.ones((2 * reach + 1, 3), np.uint8))
+    groups, group_of, boxes, _ = cv2.connectedComponentsWithStats(grown, connectivity=8)
     out = []
-    for k in range(1, count):
-        u0, v0, w, h, area = (int(x) for x in stats[k])
-        whole = u0 > 0 and v0 > 0 and u0 + w < image.shape[1] and v0 + h < image.shape[0]  # not cut by the border
-        if area >= MIN_LED_PX and whole:
-            out.append((labels[v0:v0 + h, u0:u0 + w] == k, (u0, v0, u0 + w - 1, v0 + h - 1)))
+    for g in range(1, groups):
+        tx, ty, tww, thh = (int(x) for x in boxes[g, :4])
+        r0, c0 = ty * TILE_PX, tx * TILE_PX
+        r1, c1 = min((ty + thh) * TILE_PX, height), min((tx + tww) * TILE_PX, width)
+        mine = np.repeat(np.repeat(group_of[ty:ty + thh, tx:tx + tww] == g, TILE_PX, 0), TILE_PX, 1)
+        part = (lit[r0:r1, c0:c1] & mine[:r1 - r0, :c1 - c0]).astype(np.uint8)
+        closed = cv2.morphologyEx(part, cv2.MORPH_CLOSE, np.ones((gap + 1, 1), np.uint8))
+        count, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+        for k in range(1, count):
+            u0, v0, w, h, area = (int(x) for x in stats[k])
+            u0, v0 = u0 + c0, v0 + r0
+            whole = u0 > 0 and v0 > 0 and u0 + w < width and v0 + h < height  # not cut by the border
+            if area >= MIN_LED_PX and whole:
+                out.append((labels[v0 - r0:v0 - r0 + h, u0 - c0:u0 - c0 + w] == k, (u0, v0, u0 + w - 1, v0 + h - 1)))
     return out
 
 
@@ -94,6 +117,14 @@ def _rss(cycles: float, rows: np.ndarray, width: np.ndarray, profile: np.ndarray
     return float(r @ r)
 
 
+def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 b`` for a stack of small normal matrices (pseudo-inverse where one is singular)."""
+    try:
+        return np.linalg.solve(a, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.einsum("gij,gj->gi", np.linalg.pinv(a), b)
+
+
 def stripe_frequency(profile: np.ndarray, width: np.ndarray) -> tuple[float, float]:
     """The stripes' frequency [cycles per row] of a row profile (each row's light above the dark level, summed over
     the LED's ``width`` pixels in it) and its standard error (module notes, 3-4)."""
@@ -101,7 +132,11 @@ def stripe_frequency(profile: np.ndarray, width: np.ndarray) -> tuple[float, flo
     rows = np.arange(n, dtype=float) - (n - 1) / 2
     step = 1.0 / (8 * n)
     grid = np.arange(1.0 / n, 0.25 + step, step)
-    rss = np.array([_rss(c, rows, width, profile, 1) for c in grid])
+    phase = 2 * np.pi * grid[:, None] * rows[None, :]  # the one-harmonic periodogram, every trial at once
+    x = np.stack([np.ones_like(phase), np.cos(phase), np.sin(phase)], axis=-1) * width[None, :, None]
+    xty = np.einsum("gni,n->gi", x, profile)
+    coef = _solve(np.einsum("gni,gnj->gij", x, x), xty)
+    rss = float(profile @ profile) - np.einsum("gi,gi->g", coef, xty)
     best = float(grid[int(np.argmin(rss))])
     found = minimize_scalar(_rss, bounds=(max(best - 2 * step, 0.5 / n), best + 2 * step), method="bounded",
                             args=(rows, width, profile, HARMONICS), options={"xatol": 1e-7})
@@ -117,11 +152,11 @@ def stripe_frequency(profile: np.ndarray, width: np.ndarray) -> tuple[float, flo
     return cycles, float(np.sqrt(max(cov[-1, -1], 0.0)))
 
 
-def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], row_time_s: float,
-              dark_dn: float) -> ToneReading:
-    """The tone of the LED at ``box`` whose closed mask is ``mask`` (:func:`find_tone_leds`) [Hz]: each row's light
-    above ``dark_dn`` summed over the mask, every row of the mask, columns through a saturated core left out
-    (module notes, 2)."""
+def row_profile(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int],
+                dark_dn: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's light above ``dark_dn`` summed over the LED's closed ``mask`` at ``box`` (:func:`find_tone_leds`),
+    every row of the mask, columns through a saturated core left out (module notes, 2); and the pixels summed in
+    each row (the envelope). ``profile / width`` is the row's mean light: the LED's drive over its exposure."""
     u0, v0, u1, v1 = box
     pixels = image[v0:v1 + 1, u0:u1 + 1]
     full = pixels >= SATURATED_DN
@@ -129,12 +164,20 @@ def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int
     for k in range(SATURATED_ROWS):
         run &= full[k:len(full) - SATURATED_ROWS + 1 + k]
     clipped = run.any(axis=0)
-    near = np.convolve(clipped, np.ones(2 * CORE_MARGIN_PX + 1), mode="same") > 0  # and the core's blurred rim
+    # and the core's blurred rim ("full", cut to the LED's columns: "same" returns the kernel's length on an LED
+    # narrower than it)
+    near = np.convolve(clipped, np.ones(2 * CORE_MARGIN_PX + 1))[CORE_MARGIN_PX:CORE_MARGIN_PX + pixels.shape[1]] > 0
     clear = ~near  # the glow beside the core
     keep = mask & clear[None, :] if clear.any() else mask
     block = np.clip(pixels.astype(float) - dark_dn, 0.0, None)
-    width = keep.sum(axis=1).astype(float)
-    profile = (block * keep).sum(axis=1)
+    return (block * keep).sum(axis=1), keep.sum(axis=1).astype(float)
+
+
+def read_tone(image: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], row_time_s: float,
+              dark_dn: float) -> ToneReading:
+    """The tone of the LED at ``box`` whose closed mask is ``mask`` (:func:`find_tone_leds`) [Hz], from its
+    :func:`row_profile`."""
+    profile, width = row_profile(image, mask, box, dark_dn)
     cycles, sigma = stripe_frequency(profile, width)
     return ToneReading(cycles / row_time_s, sigma / row_time_s, len(profile), cycles * len(profile), box)
 
@@ -173,3 +216,21 @@ def match_tone(reading: ToneReading, tones_hz: np.ndarray) -> ToneMatch:
     if abs(z[best]) > MAX_Z:
         return ToneMatch(None, 0.0, float(abs(z[best])))
     return ToneMatch(best, float(weights[best] / weights.sum()), float(abs(z[best])))
+
+
+@dataclass(frozen=True)
+class ToneFormat:
+    """What a receiver knows of a tone site: the plan's distinct tones [Hz] and the ID (tone class) each names."""
+
+    tones_hz: tuple[float, ...]
+    ids: tuple[int, ...]
+
+    @classmethod
+    def from_plan(cls, plan: PlanFile) -> ToneFormat:
+        pairs = sorted({(float(e.tone_hz), int(e.id)) for e in plan.luminaires if e.tone_hz is not None})
+        return cls(tuple(t for t, _ in pairs), tuple(i for _, i in pairs))
+
+    @property
+    def lowest_hz(self) -> float:
+        """The lowest tone the LED finder closes stripes for: the plan's lowest less a quarter [Hz]."""
+        return 0.75 * min(self.tones_hz)

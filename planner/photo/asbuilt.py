@@ -26,7 +26,7 @@ from planner.camera.model import Camera, disc_dual_conic
 from planner.defaults import MAX_RESIDUAL_PX
 from planner.errors import PositioningError
 from planner.photo.decode import PhotoBlob
-from planner.positioning.locate import Located, Site, Snapshot, locate
+from planner.positioning.locate import Located, Site, Snapshot, locate, refine_on_centres
 from planner.twin.twin import MATCH_SHARE
 
 SAME_PLACE_M = 0.10
@@ -44,6 +44,7 @@ class PhotoFix:
     problem: str
     luminaire: list[int | None]  # per blob: index into the site, or None
     left_out: tuple[int, ...] = ()  # the blobs left out of the fix (their IDs fit no place)
+    on_centres: bool = False  # the position refitted to the ellipse centres (saturated LEDs, :func:`_fitted`)
 
 
 def _snapshot(blobs: list[PhotoBlob], use: list[int], camera: Camera) -> Snapshot:
@@ -72,29 +73,40 @@ def locate_photo(site: Site, blobs: list[PhotoBlob], camera: Camera, method: str
         return PhotoFix(None, f"{len(use)} of {len(blobs)} LED blobs decoded to an ID of the plan: a position needs "
                         "three", none)
     try:
-        return _matched(site, blobs, camera, locate(site, _snapshot(blobs, use, camera), method,
-                                                    max_residual_px), ())
+        return _matched(site, blobs, camera, *_fitted(site, blobs, use, camera, method, max_residual_px), ())
     except PositioningError as exc:
         first = str(exc)
     for count in range(1, min(MAX_LEFT_OUT, len(use) - 3) + 1):
-        fits: list[tuple[tuple[int, ...], Located]] = []
+        fits: list[tuple[tuple[int, ...], Located, bool]] = []
         for out in combinations(use, count):
             try:
-                fits.append((out, locate(site, _snapshot(blobs, [j for j in use if j not in out], camera), method,
-                                         max_residual_px)))
+                fits.append((out, *_fitted(site, blobs, [j for j in use if j not in out], camera, method,
+                                           max_residual_px)))
             except PositioningError:
                 continue
         if not fits:
             continue
         if any(np.linalg.norm(f[1].fix.position - g[1].fix.position) >= SAME_PLACE_M for f in fits for g in fits):
             return PhotoFix(None, f"{first} (and leaving out {count} LED(s) fits two places)", none)
-        out, found = min(fits, key=lambda f: f[1].fix.residual_px)
-        return _matched(site, blobs, camera, found, out)
+        out, found, on_centres = min(fits, key=lambda f: f[1].fix.residual_px)
+        return _matched(site, blobs, camera, found, on_centres, out)
     return PhotoFix(None, first, none)
 
 
-def _matched(site: Site, blobs: list[PhotoBlob], camera: Camera, found: Located, left_out: tuple[int, ...]
-             ) -> PhotoFix:
+def _fitted(site: Site, blobs: list[PhotoBlob], use: list[int], camera: Camera, method: str,
+            max_residual_px: float) -> tuple[Located, bool]:
+    """The blobs ``use`` located; with the perspective method, four or more LEDs and a saturated one among them,
+    the position refitted to their centres (their sizes read large: :mod:`planner.photo.tones`), and whether it was."""
+    snap = _snapshot(blobs, use, camera)
+    found = locate(site, snap, method, max_residual_px)
+    if method != "perspective" or not any(blobs[k].saturated for k in use):
+        return found, False
+    refined = refine_on_centres(site, snap, found, max_residual_px)
+    return refined, refined is not found
+
+
+def _matched(site: Site, blobs: list[PhotoBlob], camera: Camera, found: Located, on_centres: bool,
+             left_out: tuple[int, ...]) -> PhotoFix:
     """The fix with every blob matched to the luminaire whose image the pose puts at its centre."""
     pos, rot = found.fix.position, found.fix.rotation
     centres, shapes, ok = centre_and_shape(disc_dual_conic(pos, rot, site.xyz, site.radii, camera.ideal()))
@@ -108,7 +120,7 @@ def _matched(site: Site, blobs: list[PhotoBlob], camera: Camera, found: Located,
         off = np.where(ok, np.hypot(*(centres - b.ideal.centre).T), np.inf)
         k = int(np.argmin(off))
         owner.append(k if off[k] <= MATCH_SHARE * 2 * minor[k] else None)
-    return PhotoFix(found, "", owner, left_out)
+    return PhotoFix(found, "", owner, left_out, on_centres)
 
 
 def verdict(blob: PhotoBlob, planned: int | None) -> str:
@@ -166,6 +178,9 @@ def blob_documents(site: Site, blobs: list[PhotoBlob], fix: PhotoFix | None) -> 
         problem = b.problem or ("" if np.any(site.ids == b.id) else f"ID {b.id} is not in the plan")
         doc = {"bbox_px": list(b.bbox), "ellipse": _ellipse_document(b.ellipse),
                "stripe_period_rows": b.stripe_period_rows, "chips": len(b.chips), "id": b.id, "problem": problem}
+        if b.tone is not None:
+            doc.update(tone_hz=round(b.tone.tone_hz, 1), tone_sigma_hz=round(b.tone.sigma_hz, 1),
+                       tone_probability=round(b.tone_probability, 4), rows=b.tone.rows, saturated=b.saturated)
         if fix is not None and fix.located is not None:
             planned = None if lum is None else int(site.ids[lum])
             doc.update(luminaire=None if lum is None else site.names[lum], planned_id=planned,

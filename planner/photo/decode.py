@@ -42,6 +42,7 @@ from planner.decode.image import (
     row_levels,
     segment,
 )
+from planner.decode.tones import ToneReading
 from planner.errors import InputError, PositioningError
 from planner.modulation.frame import decode_stream
 
@@ -70,6 +71,9 @@ class PhotoBlob:
     chips: str
     id: int | None
     problem: str  # "" when the ID was read
+    tone: ToneReading | None = None  # a tone site's LED: its tone as read
+    tone_probability: float = 0.0  # the matched tone's probability among the plan's (match_tone)
+    saturated: bool = False  # a clipped core: the ellipse's size reads large by the blur (centres hold)
 
 
 def inner_runs(levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

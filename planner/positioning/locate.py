@@ -11,7 +11,7 @@ within ``max_residual_px``. Exactly one place must remain.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -261,3 +261,27 @@ def locate(site: Site, snap: Snapshot, method: str = "perspective", max_residual
         return found
     lum = found.luminaires
     return Located(locate_paper(site.xyz[lum], site.radii[lum], snap.ellipses, snap.camera), lum)
+
+
+def refine_on_centres(site: Site, snap: Snapshot, found: Located, max_residual_px: float = MAX_RESIDUAL_PX) -> Located:
+    """``found``'s pose refitted to the ellipse centres alone (Levenberg-Marquardt from ``found``, OpenCV's
+    iterative PnP): for LEDs whose ellipse sizes read large (a clipped core's rim lies out by the blur) while
+    their centres hold (docs/tones.md). Four LEDs or more; ``found`` itself with fewer, or where the centres
+    fit no pose within ``max_residual_px`` RMS."""
+    import cv2  # here, not at import: commands that never locate skip loading it
+
+    snap = snap.ideal()
+    lum = found.luminaires
+    if len(lum) < 4:
+        return found
+    xyz, centres = site.xyz[lum].astype(np.float64), np.array([e.centre for e in snap.ellipses], np.float64)
+    to_camera = found.fix.rotation.T
+    ok, rvec, tvec = cv2.solvePnP(xyz, centres, snap.camera.intrinsics, None, cv2.Rodrigues(to_camera)[0],
+                                  (-to_camera @ found.fix.position).reshape(3, 1), True, cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        return found
+    back, _ = cv2.projectPoints(xyz, rvec, tvec, snap.camera.intrinsics, None)
+    if rms(back.reshape(-1, 2) - centres) > max_residual_px:
+        return found
+    to_camera = cv2.Rodrigues(rvec)[0]
+    return Located(replace(found.fix, position=-to_camera.T @ tvec.ravel(), rotation=to_camera.T), lum)

@@ -139,7 +139,7 @@ def _unit_circle(count: int = 128) -> np.ndarray:
 def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate_hz: float | np.ndarray, camera: Camera,
                  position: np.ndarray, rotation: np.ndarray, sensor: Sensor = Sensor(),
                  rng: np.random.Generator | None = None, phase_chips: np.ndarray | None = None,
-                 gain: np.ndarray | None = None) -> Frame:
+                 gain: np.ndarray | None = None, glow: tuple[float, float] | None = None) -> Frame:
     """The frame the camera at ``position`` [m] with camera-to-site ``rotation`` captures.
 
     ``chips`` is every luminaire's frame ('0'/'1' per chip), ``chip_rate_hz`` the site's
@@ -147,16 +147,23 @@ def render_frame(xyz: np.ndarray, radii: np.ndarray, chips: list[str], chip_rate
     the phases, brightness factors and noise (seeded for tests).
     ``phase_chips`` (each frame's phase at row 0's exposure start) and ``gain`` (each LED's
     brightness factor), when given, are used instead of drawn: consecutive video frames.
+    ``glow`` (radius factor, brightness share) adds round each LED a concentric, wider and dimmer disc playing
+    the same chips: a small chip (often saturated) in the glow of its diffuser (issue 37).
     """
     rng = rng or np.random.default_rng()
-    height, width = camera.height_px, camera.width_px
     n = len(xyz)
     rates = np.broadcast_to(np.asarray(chip_rate_hz, dtype=float), (n,))
     if phase_chips is None:
         phase_chips = rng.uniform(0.0, [len(c) for c in chips]) if n else np.zeros(0)
-    phase = phase_chips
     if gain is None:
         gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
+    if glow is not None:
+        frame = render_frame(np.vstack([xyz, xyz]), np.r_[radii, glow[0] * np.asarray(radii)], list(chips) * 2,
+                             np.r_[rates, rates], camera, position, rotation, sensor, rng,
+                             np.r_[phase_chips, phase_chips], np.r_[gain, glow[1] * gain])
+        return Frame(frame.image, np.unique(frame.drawn % n), phase_chips)
+    height, width = camera.height_px, camera.width_px
+    phase = phase_chips
     img: np.ndarray = np.full((height, width), sensor.dark_dn, np.float32)  # float32 (cv2's blur keeps it)
     in_front = project_discs_at(position[None], rotation[None], xyz[None], radii[None], camera)["in_front"][0]
     centres, shapes, ok = centre_and_shape(disc_dual_conic(position, rotation, xyz, radii, camera))
@@ -208,12 +215,7 @@ def render_tones(xyz: np.ndarray, radii: np.ndarray, tones_hz: np.ndarray, camer
     dimmer disc playing the same wave: a small chip (often saturated) in the glow of its diffuser."""
     rng = rng or np.random.default_rng()
     n = len(xyz)
-    rates = 2.0 * np.asarray(tones_hz, dtype=float)
     phase = rng.uniform(0.0, 2.0, n)
     gain = 1.0 + rng.uniform(-sensor.led_spread, sensor.led_spread, n)
-    if glow is None:
-        return render_frame(xyz, radii, ["10"] * n, rates, camera, position, rotation, sensor, rng, phase, gain)
-    frame = render_frame(np.vstack([xyz, xyz]), np.r_[radii, glow[0] * np.asarray(radii)], ["10"] * (2 * n),
-                         np.r_[rates, rates], camera, position, rotation, sensor, rng, np.r_[phase, phase],
-                         np.r_[gain, glow[1] * gain])
-    return Frame(frame.image, np.unique(frame.drawn % n), phase)
+    return render_frame(xyz, radii, ["10"] * n, 2.0 * np.asarray(tones_hz, dtype=float), camera, position, rotation,
+                        sensor, rng, phase, gain, glow)

@@ -243,11 +243,14 @@ def test_bad_photos_are_one_line_each(plan, tmp_path, capsys):
     turned = tmp_path / "turned.png"
     cv2.imwrite(str(turned), np.zeros((4000, 3000), np.uint8))
     cases = {str(tmp_path / "missing.jpg"): "no such photo", str(text): "not an image",
-             str(small): "640 x 480 px but the camera takes 4000 x 3000", str(turned): "turned"}
+             str(small): "640 x 480 px but the camera takes 4000 x 3000"}
     for image, what in cases.items():
         assert locate_main([str(plan), "--image", image]) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("vlp-locate: error: ") and what in err[0], err
+    assert locate_main([str(plan), "--image", str(turned)]) == 3  # a portrait file: turned back, then read
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "pixels are turned a quarter" in err[0] and "no LED blobs in the photo" in err[1]
     ours = tmp_path / "ours.png"  # the plan's camera's size, but another camera named
     cv2.imwrite(str(ours), np.zeros((3000, 4000), np.uint8))
     assert locate_main([str(plan), "--image", str(ours), "--camera", "main"]) == 1

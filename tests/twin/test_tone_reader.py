@@ -109,3 +109,16 @@ def test_readings_match_their_plan_tone_by_likelihood():
     halfway = match_tone(ToneReading(2750.0, 150.0, 45, 2.6, (0, 0, 1, 1)), plan)  # an uncertain reading
     assert halfway.index in (1, 2) and 0.4 < halfway.probability < 0.9
     assert match_tone(ToneReading(7000.0, 10.0, 45, 6.6, (0, 0, 1, 1)), plan).index is None
+
+
+def test_an_led_narrower_than_the_core_margin_is_read():
+    """Regression: an LED box narrower than the saturated core's margin (7 columns) broke the profile's shapes."""
+    from planner.decode.tones import read_tone
+
+    rows = np.arange(40)
+    image = np.full((60, 20), 6, np.uint8)
+    image[10:50, 8:14] = np.where(np.sin(2 * np.pi * rows / 12.0) > 0, 255, 6)[:, None]  # 6 columns, clipped
+    mask = np.zeros((40, 6), bool)
+    mask[:] = True
+    reading = read_tone(image, mask, (8, 10, 13, 49), ROW_TIME_S, 6.0)
+    assert reading.tone_hz == pytest.approx(1 / (12 * ROW_TIME_S), rel=0.03)
