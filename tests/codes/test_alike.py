@@ -3,22 +3,12 @@ and a search that clears a site whose pairs are too many to list."""
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_classes import TOL, _xyz, sites
 
-from conftest import grid_xy, hex_xy
+from conftest import grid_xy
 from planner.codes import pairwise
 from planner.codes.alike import AlikeIndex
 from planner.verify.rivals import find_rivals, shape_matches, site_triples
-
-TOL = 0.05
-
-sites = st.one_of(
-    st.builds(lambda rows, cols, jitter, seed: grid_xy(rows, cols, 0.5, 0.5, jitter_m=jitter, seed=seed),
-              st.integers(3, 6), st.integers(3, 7), st.sampled_from([0.0, 0.02, 0.06]), st.integers(0, 100)),
-    st.builds(lambda rows, cols: hex_xy(rows, cols, 0.5), st.integers(2, 4), st.integers(3, 5)))
-
-
-def _xyz(xy):
-    return np.column_stack([xy, np.full(len(xy), 2.5)])
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
