@@ -146,6 +146,7 @@ def one(name: str, poses: int, installs: int, patch_m2: float, with_plan: bool) 
                    found=len(local_found), found_all=len(found_set), outside=len(found_set - proved_set),
                    proved_counted=len(local), ratio=round(len(local) / max(len(local_found), 1), 3),
                    sample_s=round(time.perf_counter() - t1, 1))
+        print(json.dumps(out), file=sys.stderr, flush=True)
     if with_plan:
         from planner.plan.pipeline import make_plan
 
@@ -189,9 +190,10 @@ def main() -> None:
         done = subprocess.run(cmd, capture_output=True, text=True,
                               preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
         if done.returncode != 0:
-            last = done.stderr.strip().splitlines()
-            print(f"| {name} | failed (exit {done.returncode}): {last[-1] if last else ''} |"
-                  f" {' '.join(x for x in last if x.startswith('{'))} |", flush=True)
+            lines = done.stderr.strip().splitlines()
+            why = [x for x in lines if not x.startswith("{")][-1:]
+            got = [x for x in lines if x.startswith("{")][-1:]  # the figures measured before it failed
+            print(f"| {name} | failed (exit {done.returncode}): {' '.join(why)} | {' '.join(got)} |", flush=True)
             continue
         r = json.loads(done.stdout.strip().splitlines()[-1])
         where = f" in {r['patch_m2']:g} m2" if r.get("patch_m2") else ""
