@@ -1,14 +1,15 @@
 """The tiled proof in process, on 2 local processes and on a 2-worker Dask cluster: time and peak memory.
 
 Run from the repository root:  python benchmarks/parallel_bench.py [--sites grid-512 lattice-1024 ...]
-                                                                  [--modes single workers dask] [--plan]
+                                                                  [--modes single workers dask1 dask] [--plan]
 
 Sites: ``grid-512`` (the bundled grid), ``lattice-N`` (N luminaires on a 0.5 m lattice) and
 ``jittered-N`` (a 0.5 m lattice with every luminaire moved up to 0.15 m: irregular). For each site and
 mode it prints the proof's time (the tiled window set, :func:`planner.verify.proof.prove_window_set`),
 the rival search's (the site's triples that read like a proved window, at 1 cm), with ``--plan`` the
 whole ``make_plan``, the proved set's size and tiles, and the peak memory of the largest process
-(this one or a worker: each measurement runs in a fresh process). The speed-up is against ``single``.
+(this one or a worker: each measurement runs in a fresh process). The speed-up is against ``single``; a
+``dask`` row's also against ``dask1`` (a 1-worker cluster: the base of issue 34's 2-worker aim) when both ran.
 """
 
 from __future__ import annotations
@@ -65,12 +66,13 @@ def one(name: str, mode: str, with_plan: bool) -> dict:
     xyz, radii = layout.xyz, np.array([lum.radius for lum in layout.luminaires])
     cluster = None
     run: Runner
-    if mode == "dask":
+    if mode in ("dask", "dask1"):
         from distributed import LocalCluster
 
         from planner.parallel import DaskCluster
 
-        cluster = LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None)
+        cluster = LocalCluster(n_workers=2 if mode == "dask" else 1, processes=True, threads_per_worker=1,
+                               dashboard_address=None)
         run = DaskCluster(cluster.scheduler_address)
     elif mode == "workers":
         from planner.parallel import LocalProcesses
@@ -103,7 +105,7 @@ def one(name: str, mode: str, with_plan: bool) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sites", nargs="+", default=["grid-512", "lattice-1024", "jittered-10000", "lattice-100000"])
-    ap.add_argument("--modes", nargs="+", default=["single", "workers", "dask"], choices=["single", "workers", "dask"])
+    ap.add_argument("--modes", nargs="+", default=["single", "workers", "dask"], choices=["single", "workers", "dask1", "dask"])
     ap.add_argument("--plan", action="store_true", help="also time the whole make_plan (long beyond 1,024)")
     ap.add_argument("--one", nargs=2, metavar=("SITE", "MODE"), help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -115,7 +117,7 @@ def main() -> None:
     print("| site | luminaires | mode | tiles | proved windows | proof [s] | rivals [s] | plan [s] | speed-up | peak [MiB] |")
     print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|")
     for name in args.sites:
-        base = None
+        base = dask1 = None
         for mode in args.modes:
             cmd = [sys.executable, __file__, "--one", name, mode] + (["--plan"] if args.plan else [])
             done = subprocess.run(cmd, capture_output=True, text=True)
@@ -125,7 +127,9 @@ def main() -> None:
             r = json.loads(done.stdout.strip().splitlines()[-1])
             total = r["proof_s"] + r.get("rivals_s", 0.0)
             base = total if mode == "single" else base
+            dask1 = total if mode == "dask1" else dask1
             speed = f"{base / total:.2f}" if base else "-"
+            speed += f" ({dask1 / total:.2f} vs dask1)" if mode == "dask" and dask1 else ""
             print(f"| {name} | {r['luminaires']:,} | {mode} | {r['tiles']} | "
                   f"{r['windows'] if r['windows'] is not None else 'not proved'} | {r['proof_s']} | "
                   f"{r.get('rivals_s', '-')} | {r.get('plan_s', '-')} | {speed} | {r['peak_mib']:,} |", flush=True)
