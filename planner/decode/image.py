@@ -302,3 +302,7 @@ def _off_centre(blob: Blob, camera: Camera) -> float:
     return math.hypot(ellipse.cx - camera.cx_px, ellipse.cy - camera.cy_px)
 
 
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
+    """Linear light 0..1 of sRGB-encoded values 0..1 (IEC 61966-2-1's inverse transfer function)."""
+    v = np.asarray(encoded, np.float32)
+    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4)).astype(np.float32)

@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from planner.camera.model import Camera
-from planner.decode.image import FrameFormat
+from planner.decode.image import FrameFormat, srgb_to_linear
 from planner.decode.tones import ToneFormat
 from planner.defaults import MAX_IMAGE_PX, SENSOR_BLUR_PX, SENSOR_EXPOSURE_S
 from planner.errors import InputError
@@ -112,12 +112,6 @@ def read_image(path: str | Path) -> np.ndarray:
     if image.ndim == 3 and image.shape[2] == 4:  # PNG with alpha: the colour is what the camera saw
         image = image[..., :3]
     return image
-
-
-def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
-    """Linear light 0..1 of sRGB-encoded values 0..1 (IEC 61966-2-1's inverse transfer function)."""
-    v = np.asarray(encoded, np.float32)
-    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4)).astype(np.float32)
 
 
 BAND_ROWS = 256

@@ -14,7 +14,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from planner.photo.read import srgb_to_linear
+from planner.decode.image import srgb_to_linear
 
 BLOOM_SHARE = 0.05
 """Share of each pixel's light that blooming spreads round it (5 %: a faint halo round a saturated LED)."""

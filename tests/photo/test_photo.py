@@ -18,9 +18,10 @@ import pytest
 from conftest import grid32_copy
 from planner.camera.model import rotation_from_angles
 from planner.cli.locate import console_main as locate_main
+from planner.decode.image import srgb_to_linear
 from planner.modulation.frame import frame_chips, line_code
 from planner.photo.decode import chips_from_runs, inner_runs, stripe_period_rows
-from planner.photo.read import ceiling, linear_luminance, srgb_to_linear
+from planner.photo.read import ceiling, linear_luminance
 from planner.plan.file import load_plan
 from planner.positioning.observation import seen_leds
 from planner.twin.render import Sensor, exposure_means, render_frame
