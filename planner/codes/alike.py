@@ -7,8 +7,8 @@ minutes to list. The groups of :mod:`planner.codes.classes` avoid the listing on
 congruent triples form cliques, but on an irregular site the shapes form a continuum and chain
 into a few huge groups (the jittered site: 4 groups, over the tables' budget). Here the same pairs
 are found by a grid over side lengths (cells as wide as the tolerance, 27 cells per window) and kept
-as (window, triple, turn): 9 bytes each, plus 8 for the lists of pairs per triple. A luminaire's
-cost of each label is counted from the pairs of the triples that hold it. The conflicts are exactly
+from both of their triples as slots of the other triple and its luminaires in this one's reading order
+(10 bytes a slot). A luminaire's cost of each label is counted from the slots of the triples that hold it. The conflicts are exactly
 those of :func:`planner.verify.rivals.find_rivals` against the same windows and triples.
 """
 
