@@ -31,10 +31,11 @@ pose instead (docs/verification.md).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from planner.verify.rivals import site_triples
-from planner.verify.windows import MIN_FLATNESS, SAME_HEIGHT_M, segment_distance, twice_signed_area
+from planner.verify.windows import MIN_FLATNESS, SAME_HEIGHT_M, twice_signed_area
 
 NEIGHBOURS = 32
 """LEDs nearest a triangle's centroid that are tested for lying inside it (more only prune more)."""
@@ -79,35 +80,70 @@ def _holds(triples: np.ndarray, near: np.ndarray, xyz: np.ndarray, radii: np.nda
     same ceiling and no larger disc, deeper than ``2 d`` inside every edge of the drawn triangle, or any other
     LED of the same ceiling whose centre lies within its radius less ``2 d`` of a drawn side (it crosses that
     side however the luminaires are installed)."""
-    xy = xyz[:, :2]
-    p = xy[triples]  # (T, 3, 2)
-    q = xy[near]  # (T, m, 2)
-    orient = np.where(twice_signed_area(p) >= 0, 1.0, -1.0)[:, None]
-    margin = 2.0 * install_tolerance_m  # 0: the closed triangle (an LED on an edge is nearer too)
-    inside = np.ones(near.shape, dtype=bool)
-    for s in range(3):  # signed distance from each edge line, positive towards the triangle
-        a, b = p[:, s], p[:, (s + 1) % 3]
-        edge = b - a
-        length = np.linalg.norm(edge, axis=1)[:, None]
-        dist = orient * (edge[:, None, 0] * (q[..., 1] - a[:, None, 1]) - edge[:, None, 1] * (q[..., 0] - a[:, None, 0]))
-        inside &= dist >= margin * np.maximum(length, 1e-12)
-    member = (near[:, :, None] == triples[:, None, :]).any(axis=2)
-    crossing = np.zeros(near.shape, dtype=bool)
-    for s in range(3):
-        crossing |= segment_distance(p[:, s], p[:, (s + 1) % 3], q) + margin < radii[near]
-    coplanar = (np.abs(xyz[near, 2] - xyz[triples, 2].min(axis=1)[:, None]) < SAME_HEIGHT_M) \
-        & (np.ptp(xyz[triples, 2], axis=1) < SAME_HEIGHT_M)[:, None]
-    small = radii[near] <= radii[triples].min(axis=1)[:, None]
-    return (((inside & small) | crossing) & ~member & coplanar).any(axis=1)
+    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
+    return _holds_kernel(np.ascontiguousarray(triples, dtype=np.int64), np.ascontiguousarray(near, dtype=np.int64),
+                         xyz, np.ascontiguousarray(radii, dtype=np.float64), 2.0 * install_tolerance_m, SAME_HEIGHT_M)
+
+
+@njit(cache=True)
+def _holds_kernel(triples, near, xyz, radii, margin, same_height):
+    """:func:`_holds`, one triple at a time, stopping at the first LED that forbids it (``margin``: ``2 d``;
+    0 tests the closed triangle: an LED on an edge is nearer too). The arithmetic is numpy's, term by term."""
+    held = np.zeros(len(triples), dtype=np.bool_)
+    for t in range(len(triples)):
+        i, j, k = triples[t, 0], triples[t, 1], triples[t, 2]
+        zmin = min(xyz[i, 2], xyz[j, 2], xyz[k, 2])
+        if max(xyz[i, 2], xyz[j, 2], xyz[k, 2]) - zmin >= same_height:
+            continue  # not one ceiling: no claim
+        rmin = min(radii[i], radii[j], radii[k])
+        px = (xyz[i, 0], xyz[j, 0], xyz[k, 0])
+        py = (xyz[i, 1], xyz[j, 1], xyz[k, 1])
+        area2 = (px[1] - px[0]) * (py[2] - py[0]) - (py[1] - py[0]) * (px[2] - px[0])
+        orient = 1.0 if area2 >= 0 else -1.0
+        for c in range(near.shape[1]):
+            q = near[t, c]
+            if q == i or q == j or q == k or abs(xyz[q, 2] - zmin) >= same_height:
+                continue
+            qx, qy = xyz[q, 0], xyz[q, 1]
+            inside = radii[q] <= rmin
+            crossing = False
+            for s in range(3):
+                ax, ay = px[s], py[s]
+                ex, ey = px[(s + 1) % 3] - ax, py[(s + 1) % 3] - ay
+                length2 = ex * ex + ey * ey
+                if orient * (ex * (qy - ay) - ey * (qx - ax)) < margin * max(np.sqrt(length2), 1e-12):
+                    inside = False
+                u = min(max(((qx - ax) * ex + (qy - ay) * ey) / max(length2, 1e-24), 0.0), 1.0)
+                dx, dy = qx - (ax + u * ex), qy - (ay + u * ey)
+                if np.sqrt(dx * dx + dy * dy) + margin < radii[q]:
+                    crossing = True
+            if inside or crossing:
+                held[t] = True
+                break
+    return held
 
 
 def may_be_decoded(p: np.ndarray) -> np.ndarray:
     """Triangles ``p`` (T, 3, 2) [m], as drawn, that the receiver does not call collinear (flatness at least
     :data:`MIN_FLATNESS`): it judges the plan's triangle of the luminaires it read, not their installed shape,
     so the install tolerance does not blur this line (docs/verification.md)."""
-    e = p[:, [1, 2, 0]] - p
-    longest = np.linalg.norm(e, axis=2).max(axis=1)
-    return np.abs(twice_signed_area(p)) >= MIN_FLATNESS * np.maximum(longest, 1e-12) ** 2
+    return _decodable(np.ascontiguousarray(p[:, :, :2], dtype=np.float64), MIN_FLATNESS)
+
+
+@njit(cache=True)
+def _decodable(p, min_flatness):
+    """:func:`may_be_decoded`, triangle by triangle (numpy's arithmetic, term by term)."""
+    out = np.empty(len(p), dtype=np.bool_)
+    for t in range(len(p)):
+        longest = 0.0
+        for s in range(3):
+            dx, dy = p[t, (s + 1) % 3, 0] - p[t, s, 0], p[t, (s + 1) % 3, 1] - p[t, s, 1]
+            longest = max(longest, np.sqrt(dx * dx + dy * dy))
+        area2 = ((p[t, 1, 0] - p[t, 0, 0]) * (p[t, 2, 1] - p[t, 0, 1])
+                 - (p[t, 1, 1] - p[t, 0, 1]) * (p[t, 2, 0] - p[t, 0, 0]))
+        longest = max(longest, 1e-12)
+        out[t] = abs(area2) >= min_flatness * (longest * longest)
+    return out
 
 
 def window_superset(xyz: np.ndarray, radii: np.ndarray, max_side_m: float, install_tolerance_m: float) -> np.ndarray:
