@@ -5,7 +5,8 @@ Run from the repository root:  python benchmarks/scale_bench.py [--sites grid-51
 
 Sites: ``grid-512`` (bundled), ``lattice-N`` (:func:`planner.studies.efficiency.lattice_layout`, 0.5 m),
 ``hex-1088`` and ``jittered-2040`` (``tests/codes/sites.py``: the issue's hexagonal and jittered sites) and
-``jittered-N`` otherwise (``benchmarks/parallel_bench.py``: a 0.5 m lattice, each luminaire moved up to 15 cm).
+``jittered-N`` otherwise (``benchmarks/parallel_bench.py``: a 0.5 m lattice, each luminaire moved up to 15 cm),
+and :data:`SMALL`'s ``small-...`` sites (the largest of the irregular families the tests draw with hypothesis).
 
 Each site runs in a child process (its peak memory is its own; ``--limit-gib`` caps its address space).
 The child proves the window set at the default 3 cm install tolerance in process
@@ -49,9 +50,33 @@ FRESH_SEED = 90_000
 """First Sobol seed of the fresh poses: far from the planner's (0) and the tests' (10,000-30,000)."""
 
 
+SMALL = ("small-grid-9x9-j0.12-s5", "small-hex-8x8", "small-poisson-60-0.4-s3")
+"""The largest members of the irregular families the tests draw with hypothesis (``tests/verify/test_window_set.sites``:
+a 0.5 m lattice moved by a normal jitter, a 0.6 m triangular lattice, dart throwing), at 2.5 m."""
+
+
+def small_site(name: str):
+    """One site of :data:`SMALL`'s families, its parameters in its name."""
+    from conftest import grid_xy, hex_xy, poisson_xy
+    from planner.layout.model import Layout, Luminaire
+
+    kind, *args = name.split("-")[1:]
+    if kind == "grid":
+        rows, cols = map(int, args[0].split("x"))
+        xy = grid_xy(rows, cols, 0.5, 0.5, jitter_m=float(args[1][1:]), seed=int(args[2][1:]))
+    elif kind == "hex":
+        xy = hex_xy(*map(int, args[0].split("x")), 0.6)
+    else:
+        xy = poisson_xy(int(args[0]), float(args[1]), int(args[2][1:]))
+    return Layout(tuple(Luminaire(f"L{k}", float(x), float(y), 2.5) for k, (x, y) in enumerate(xy)),
+                  source_path=f"{name}.yaml")
+
+
 def site(name: str):
     from parallel_bench import site as bench_site
 
+    if name.startswith("small-"):
+        return small_site(name)
     if name == "hex-1088":
         from codes.sites import hexagonal_site
 
@@ -165,7 +190,7 @@ def _cell(r: dict, key: str, fmt: str = "{:,}") -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sites", nargs="+", default=["grid-512", "lattice-1024", "hex-1088", "jittered-2040",
+    ap.add_argument("--sites", nargs="+", default=[*SMALL, "grid-512", "lattice-1024", "hex-1088", "jittered-2040",
                                                    "jittered-10000", "lattice-100000"])
     ap.add_argument("--poses", type=int, default=1_000_000, help="fresh poses per site (0: no tightness)")
     ap.add_argument("--installs", type=int, default=10, help="displaced installations sharing the poses")
