@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from planner.verify.envelope import Envelope
@@ -95,19 +96,33 @@ def _apex_cover(a, b, xs, valid, env: Envelope, side: float) -> np.ndarray:
 
 def _min_cover(lo: np.ndarray, hi: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
     """Fewest closed intervals ``[lo, hi]`` (P, K; inf = none) covering a point of ``[start, stop]`` (P,)."""
+    return _min_cover_rows(np.ascontiguousarray(lo, dtype=np.float64), np.ascontiguousarray(hi, dtype=np.float64),
+                           np.ascontiguousarray(start, dtype=np.float64), np.ascontiguousarray(stop, dtype=np.float64))
+
+
+@njit(cache=True)
+def _min_cover_rows(lo, hi, start, stop):
+    """:func:`_min_cover` row by row: sweep the ends in order (ties keep the starts first, as listed), counting
+    the intervals over each open piece between two ends that meets ``[start, stop]``; none before the first."""
     p, k = lo.shape
-    ev = np.concatenate([lo, hi], axis=1)
-    step = np.concatenate([np.where(np.isfinite(lo), 1, 0), np.where(np.isfinite(hi), -1, 0)], axis=1)
-    order = np.argsort(ev, axis=1, kind="stable")
-    ev, step = np.take_along_axis(ev, order, 1), np.take_along_axis(step, order, 1)
-    count = np.cumsum(step, axis=1)  # cover of the open piece after each event
-    nxt = np.concatenate([ev[:, 1:], np.full((p, 1), np.inf)], axis=1)
-    piece_lo, piece_hi = np.maximum(ev, start[:, None]), np.minimum(nxt, stop[:, None])
-    real = (nxt > ev) & (piece_hi > piece_lo)
-    best = np.where(real, count, np.iinfo(np.int64).max).min(axis=1)
-    first = np.where(np.isfinite(ev[:, 0]), ev[:, 0], np.inf)
-    before = first > start  # the stretch before the first interval is covered by none
-    return np.where(before, 0, best)
+    out = np.empty(p, dtype=np.int64)
+    ev = np.empty(2 * k)
+    step = np.empty(2 * k, dtype=np.int64)
+    for r in range(p):
+        for c in range(k):
+            ev[c], ev[k + c] = lo[r, c], hi[r, c]
+            step[c] = 1 if np.isfinite(lo[r, c]) else 0
+            step[k + c] = -1 if np.isfinite(hi[r, c]) else 0
+        order = np.argsort(ev, kind="mergesort")
+        best, count = np.iinfo(np.int64).max, 0
+        for e in range(2 * k):
+            here = ev[order[e]]
+            count += step[order[e]]
+            nxt = ev[order[e + 1]] if e + 1 < 2 * k else np.inf
+            if nxt > here and min(nxt, stop[r]) > max(here, start[r]):
+                best = min(best, count)
+        out[r] = 0 if ev[order[0]] > start[r] else best  # inf > start: no interval at all
+    return out
 
 
 # --- case B, axis point inside the triangle: cells --------------------------------------------------
