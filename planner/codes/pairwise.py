@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
-from planner.verify.rivals import counter_clockwise, longest_side, sides, site_triples
+from planner.verify.rivals import counter_clockwise, longest_side, sides, triples_of_pairs
 
 NOISE = 0.05
 """Share of steps that move a random luminaire of the chosen conflict (to its best other label)."""
@@ -29,6 +29,10 @@ STALL_STEPS = 300
 """Moves without a new fewest count of conflicts after which a search gives up."""
 ALIKE_BUDGET = 12_000_000
 """Most (window, triple, rotation) shape matches listed (about 100 bytes each while listing)."""
+SITE_BUDGET = 36_000_000
+"""Most triples of the site short enough to match a window (counted from above before they are made) that
+the listing holds with their sides and KD-tree (about 100 bytes each); beyond it, as beyond
+:data:`ALIKE_BUDGET`, the pairs are not listed (a 10,000-luminaire irregular site holds 114 million)."""
 _CHUNK = 20_000
 """Windows whose matches are listed at once."""
 
@@ -68,13 +72,18 @@ def alike_pairs(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, site: 
     not read like (default: every triple short enough). Returns (P x 6) int64 rows
     ``a0 a1 a2 b0 b1 b2``: ``a`` reads like ``b`` when label ``a_j`` equals label ``b_j`` for
     every ``j``. Each pair appears once, whatever its rotation or order. None when more than
-    ``budget`` (window, triple, rotation) matches are found.
+    ``budget`` (window, triple, rotation) matches are found, or the site has more than
+    :data:`SITE_BUDGET` triples to match.
     """
     windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
     if len(windows) == 0:
         return np.empty((0, 6), dtype=np.int64)
     if site is None:
-        site = site_triples(xyz[:, :2], longest_side(windows, xyz) + tolerance_m + 1e-9)
+        near = cKDTree(xyz[:, :2]).query_pairs(longest_side(windows, xyz) + tolerance_m + 1e-9, output_type="ndarray")
+        deg = np.bincount(near.min(axis=1), minlength=len(xyz)) if len(near) else np.zeros(1, np.int64)
+        if int((deg * (deg - 1) // 2).sum()) > SITE_BUDGET:  # at least as many as the site's triples
+            return None
+        site = triples_of_pairs(near, len(xyz))
     win = counter_clockwise(windows, xyz[:, :2])
     other = counter_clockwise(np.asarray(site, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
     tree = cKDTree(sides(other, xyz))

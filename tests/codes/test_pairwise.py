@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from conftest import grid_xy
 from planner.codes.pairwise import Index, alike_pairs, conflicts, search
-from planner.verify.rivals import find_rivals, site_triples
+from planner.verify.rivals import find_rivals, longest_side, site_triples
 
 TOL = 0.05
 
@@ -78,6 +78,21 @@ def test_over_budget_returns_none():
     xy = grid_xy(3, 4, 0.5, 0.5)
     windows = site_triples(xy, 0.75)
     assert alike_pairs(windows, _xyz(xy), TOL, budget=10) is None
+
+
+def test_a_site_with_too_many_triples_to_match_is_not_listed(monkeypatch):
+    """The site's triples are counted from above before they are made: over the budget, no pairs (None),
+    at the count itself the same pairs as ever."""
+    from planner.codes import pairwise
+
+    xy = grid_xy(4, 5, 0.5, 0.5)
+    windows = site_triples(xy, 0.75)
+    full = alike_pairs(windows, _xyz(xy), TOL)
+    made = len(site_triples(xy, longest_side(windows, _xyz(xy)) + TOL + 1e-9))
+    monkeypatch.setattr(pairwise, "SITE_BUDGET", made - 1)  # the count is an upper bound: at least the triples
+    assert alike_pairs(windows, _xyz(xy), TOL) is None
+    monkeypatch.setattr(pairwise, "SITE_BUDGET", 10 * made)
+    assert np.array_equal(alike_pairs(windows, _xyz(xy), TOL), full)
 
 
 def test_a_luminaire_in_two_places_of_one_pair_is_scored_in_full():
