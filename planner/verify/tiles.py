@@ -20,6 +20,7 @@ tiles and plan.yaml says so.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 
@@ -199,6 +200,17 @@ class _Shapes:
     shapes: np.ndarray  # (S, 3) the windows' side lengths in every rotation, rounded to GRAIN_M
     max_side_m: float
     reach_m: float
+    token: str  # the shapes' digest: a process that runs many tiles builds their KD-tree once
+
+    def tree(self) -> cKDTree:
+        """The shapes' KD-tree, built once per process however many tiles it runs (about 1 s a million shapes)."""
+        if self.token not in _TREES:
+            _TREES.clear()
+            _TREES[self.token] = cKDTree(self.shapes)
+        return _TREES[self.token]
+
+
+_TREES: dict[str, cKDTree] = {}
 
 
 GRAIN_M = 1e-7
@@ -222,7 +234,7 @@ def _shape_job(shared: _Shapes, job: _Job) -> tuple[np.ndarray, np.ndarray, np.n
     key = degree[site[:, 0]] if len(site) else np.empty(0, dtype=np.int64)
     site = counter_clockwise(site, xy)
     lengths = sides(site, job.xyz)
-    near, _ = cKDTree(shared.shapes).query(lengths, k=1, p=np.inf, distance_upper_bound=shared.reach_m + GRAIN_M)
+    near, _ = shared.tree().query(lengths, k=1, p=np.inf, distance_upper_bound=shared.reach_m + GRAIN_M)
     keep = np.asarray(near <= shared.reach_m - GRAIN_M)
     unsure = np.isfinite(near) & ~keep
     return (job.halo[site[keep]].reshape(-1, 3), key[keep], job.halo[site[unsure]].reshape(-1, 3),
@@ -239,7 +251,8 @@ def tiled_shape_matches(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float
         return win
     max_side = longest_side(win, xyz) + tolerance_m + 1e-9
     exact = np.vstack([sides(np.roll(win, -r, axis=1), xyz) for r in range(3)])
-    shared = _Shapes(np.unique(np.round(exact / GRAIN_M), axis=0) * GRAIN_M, max_side, tolerance_m + 1e-9)
+    shapes = np.unique(np.round(exact / GRAIN_M), axis=0) * GRAIN_M
+    shared = _Shapes(shapes, max_side, tolerance_m + 1e-9, hashlib.sha1(shapes.tobytes()).hexdigest())
     tiles = tiling(xy)
 
     def job(t: int) -> _Job:
