@@ -79,6 +79,10 @@ def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
     lattice), cells as wide as the tolerance on irregular sites, where no two
     triples are exactly congruent and classes of one triple each would be near thousands of others."""
     win = _distinct_ccw(windows, xyz)
+    reach = tolerance_m + resolution_m + SHAPE_RESOLUTION_M
+    vectors, rank = _turn_ranks(win, xyz, resolution_m)
+    if _links(vectors[np.unique(rank.min(axis=1))] * resolution_m, reach, 1) > LINK_BUDGET:
+        return None  # the windows' classes alone are over: so are theirs with the matches' (an irregular site)
     everything = np.vstack([win, shape_matches(win, xyz, tolerance_m) if matches is None else matches])
     key = np.sort(everything, axis=1)
     _, first = np.unique(key, axis=0, return_index=True)  # windows come first, so they keep their flag
@@ -91,7 +95,7 @@ def shape_groups(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float,
     shape = vectors[used] * resolution_m  # (C, 3) each class's sides in its order
     # rounding moves a side by at most half the resolution: classes within the tolerance plus one
     # resolution hold every pair of triples within the tolerance
-    merged = _merge(shape, tolerance_m + resolution_m + SHAPE_RESOLUTION_M)
+    merged = _merge(shape, reach)
     if merged is None:
         return None
     group, turn_by, spin = merged
@@ -143,6 +147,14 @@ def near_lower_bound(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float) -
     return k
 
 
+def _links(shape: np.ndarray, reach_m: float, step: int, tree: cKDTree | None = None) -> int:
+    """Links between classes of ``shape`` (C, 3) within ``reach_m`` in some rotation, each one's own too:
+    counted from every ``step``-th class and scaled (exact for 1)."""
+    tree = cKDTree(shape) if tree is None else tree
+    return step * sum(int(tree.query_ball_point(np.roll(shape[::step], -r, axis=1), reach_m, p=np.inf,
+                                                return_length=True).sum()) for r in range(3))
+
+
 def _merge(shape: np.ndarray, reach_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Join classes whose shapes lie within ``reach_m`` in some rotation; returns each class's
     group, the further turn that brings it into its group's order (first found wins), and
@@ -154,8 +166,7 @@ def _merge(shape: np.ndarray, reach_m: float) -> tuple[np.ndarray, np.ndarray, n
     spin = np.zeros(c, dtype=bool)
     every = max(1, c // 2000)  # links estimated from every so many classes first: counting them all is slow
     for step in sorted({every, 1}, reverse=True):
-        if step * sum(int(tree.query_ball_point(np.roll(shape[::step], -r, axis=1), reach_m, p=np.inf,
-                                                return_length=True).sum()) for r in range(3)) > LINK_BUDGET:
+        if _links(shape, reach_m, step, tree) > LINK_BUDGET:
             return None
     for r in range(3):
         for u, hits in enumerate(tree.query_ball_point(np.roll(shape, -r, axis=1), reach_m, p=np.inf)):

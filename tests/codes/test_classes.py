@@ -150,3 +150,22 @@ def test_an_irregular_site_over_the_budgets_is_labelled_by_its_pairs_or_by_group
     assert got is not None and got.labels is not None and got.bits < 7
     assert 0 < got.detail["shape_groups"] < 20
     assert find_rivals(windows, xyz, got.labels, TOL) == []
+
+
+def test_an_irregular_site_whose_windows_alone_are_over_the_link_budget_gets_no_groups_before_its_matches(monkeypatch):
+    """The windows' own classes are some of the classes: their links over the budget, the groups are refused
+    before the site's matches are found or ranked (a 10,000-luminaire site: minutes and 10 GB); under it, the
+    groups are what they were."""
+    from planner.codes import classes
+
+    xy = grid_xy(6, 7, 0.6, 0.6, jitter_m=0.03, seed=5)
+    xyz = _xyz(xy)
+    windows = site_triples(xy, 0.9)
+    classes_of_windows = len(np.unique(np.round(np.sort(np.linalg.norm(
+        xy[windows] - xy[np.roll(windows, -1, axis=1)], axis=2), axis=1), 6), axis=0))
+    assert classes_of_windows == len(windows)  # irregular: every window its own class
+    monkeypatch.setattr(classes, "LINK_BUDGET", len(windows) - 1)  # each class links at least itself
+    monkeypatch.setattr(classes, "shape_matches", lambda *a: (_ for _ in ()).throw(AssertionError("matched")))
+    assert shape_groups(windows, xyz, TOL) is None
+    monkeypatch.undo()
+    assert shape_groups(windows, xyz, TOL, resolution_m=TOL) is not None
