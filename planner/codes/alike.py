@@ -184,7 +184,7 @@ class AlikeIndex:
         xy = xyz[:, :2]
         win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0), xy)
         other = counter_clockwise(np.asarray(matches, np.int64).reshape(-1, 3), xy)
-        other = other[~_in(np.sort(other, axis=1), np.sort(win, axis=1))]
+        other = other[~rows_in(np.sort(other, axis=1), np.sort(win, axis=1))]
         other = other[np.unique(np.sort(other, axis=1), axis=0, return_index=True)[1]]
         T = np.ascontiguousarray(np.vstack([win, other]).astype(np.int32))
         tol = tolerance_m + 1e-9
@@ -232,7 +232,7 @@ class AlikeIndex:
                      True)[1].tolist()
 
 
-def _in(rows: np.ndarray, among: np.ndarray) -> np.ndarray:
+def rows_in(rows: np.ndarray, among: np.ndarray) -> np.ndarray:
     """Whether each sorted row of ``rows`` is a row of ``among`` (both (M, 3) int)."""
     if len(among) == 0 or len(rows) == 0:
         return np.zeros(len(rows), bool)

@@ -26,13 +26,14 @@ import numpy as np
 from planner.camera.model import Camera
 from planner.codes import classes, pairwise
 from planner.codes import window as window_code
-from planner.codes.alike import AlikeIndex
+from planner.codes.alike import AlikeIndex, rows_in
 from planner.codes.assignment import Assignment, bits_for, tile_regions
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
 from planner.layout.model import area_m2
 from planner.verify.proof import Proof
 from planner.verify.rivals import counter_clockwise, find_rivals, longest_side, shape_matches, sides, site_triples
+from planner.verify.tiles import tiled_shape_matches
 from planner.verify.verify import Verification, classify, design_windows, observe_site
 from planner.verify.window_set import window_superset
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2, working_area
@@ -359,19 +360,27 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     floor_m2 = max(area_m2(area), 1e-6)
     design = design_windows(xyz, radii, outline, camera, per_m2=design_per_m2(per_m2, floor_m2), seed=seed + 1,
                             tolerance_m=tolerance_m)
-    windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
-    if proof is not None and proof.triangles is not None:  # proved, but too large to design against directly
-        windows = np.unique(np.sort(np.vstack([windows, proof.triangles]), axis=1), axis=0)
-        bound = max(bound, longest_side(proof.triangles, xyz))
+    rival_site: np.ndarray | None = None  # where rivals are searched: every short triple, or a proof's matches
+    if proof is not None and proof.triangles is not None:  # proved, but too large to design against directly:
+        # the proved set holds every window (the sampled ones too), so no superset of it is needed
+        windows = np.unique(np.sort(np.vstack([design.windows.reshape(-1, 3), proof.triangles]), axis=1), axis=0)
+        bound = longest_side(windows, xyz)
+        rival_site = proof.shape_matches(tolerance_m)
+        extra = windows[~rows_in(windows, np.sort(proof.triangles, axis=1))]  # both sorted within rows
+        if len(extra):  # none while the proof is sound: matched all the same
+            rival_site = np.vstack([rival_site, tiled_shape_matches(extra, xyz, tolerance_m, proof.runner)])
+    else:
+        windows, bound = _protected(design.windows, xyz, radii, tolerance_m, install_tolerance_m)
     others, first = None, windows
-    full = _keyed(windows, xyz, tolerance_m)
-    lazy = len(full[0]) > MAX_READINGS
-    if lazy:  # too many short triples to key them all: rivals join as they are found
+    # too many short triples to key them all (the windows alone are readings): rivals join as they are found
+    full = None if len(windows) > MAX_READINGS else _keyed(windows, xyz, tolerance_m)
+    lazy = full is None or len(full[0]) > MAX_READINGS
+    if lazy:
         others = windows
 
     def solve(repair_from=None, min_bits=1):
-        fresh = others is None and repair_from is None and len(windows) == len(first)
-        problem = full if fresh else _keyed(windows, xyz, tolerance_m, others)
+        fresh = full is not None and others is None and repair_from is None and len(windows) == len(first)
+        problem = full if fresh and full is not None else _keyed(windows, xyz, tolerance_m, others)
         if repair_from is not None:
             got = window_code.repair_labels(repair_from[0], n, *problem[:3], repair_from[1], seed=seed,
                                             max_steps=200_000, active=problem[3])
@@ -386,7 +395,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
     check_seeds = [seed + 1000 * (r + 1) for r in range(CHECK_SEEDS - 1)] + [seed]
     widths, passes = [bits_for(max(k, 2))], 0  # passes: repairs at the present width
     while True:
-        found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m)]
+        found = [t for _, t in find_rivals(windows, xyz, labels + 1, tolerance_m, site=rival_site)]
         missed: list[tuple[int, ...]] = []
         check: Verification | None = None
         for s in check_seeds:
@@ -395,6 +404,8 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         if (not found and not missed) or len(np.unique(labels)) == n:
             break
         windows = np.vstack([windows, np.array(missed, dtype=np.int64).reshape(-1, 3)])
+        if rival_site is not None and missed:  # a proved set is sound, so never; but if it were not
+            rival_site = np.vstack([rival_site, tiled_shape_matches(np.array(missed, dtype=np.int64), xyz, tolerance_m)])
         if lazy:
             assert others is not None  # lazy keying starts from the windows and only grows
             others = np.vstack([others, np.array(found, dtype=np.int64).reshape(-1, 3)])

@@ -122,6 +122,31 @@ def test_a_proved_set_over_every_budget_is_still_designed_against(monkeypatch):
     assert find_rivals(proof.triangles, xyz, a.ids, TOL) == []
 
 
+def test_a_large_proved_set_is_designed_against_without_making_every_short_triple(monkeypatch):
+    """Past the readings' budget (a 10,000-luminaire irregular site: 570,390 proved windows, 114 million
+    triples short enough), rivals are searched among the proof's shape matches, never among every short
+    triple of the site, and the result still leaves no proved window reading like another triple."""
+    from planner.codes import alike, classes, pairwise, schemes
+    from planner.graph import build_graph
+    from planner.verify import rivals
+
+    def never(*args):
+        raise AssertionError("every short triple of the site was made")
+
+    for module, name, value in ((pairwise, "ALIKE_BUDGET", 0), (alike, "PAIR_BUDGET", 0), (classes, "LINK_BUDGET", 0),
+                                (schemes, "MAX_READINGS", 10), (schemes, "site_triples", never),
+                                (rivals, "site_triples", never)):
+        monkeypatch.setattr(module, name, value)
+    xy = grid_xy(3, 6, 0.5, 0.5, jitter_m=0.02, seed=4)
+    xyz, radii = _site(xy)
+    proof = prove_window_set(xyz, radii, Camera(), 0.03)
+    outline = ((-0.5, -0.5), (3.0, -0.5), (3.0, 1.5), (-0.5, 1.5))
+    a, _ = schemes.assign_window(xyz, radii, outline, build_graph(xy), Camera(), proof=proof)
+    assert a.detail["rivals"] == "lazy" and a.bits < bits_for(len(xyz))
+    monkeypatch.undo()
+    assert proof.triangles is not None and find_rivals(proof.triangles, xyz, a.ids, TOL) == []
+
+
 def test_the_plan_gives_the_counting_bound_of_its_proved_window_set(tmp_path, capsys):
     """grid-32: plan.yaml's ``code.window_set`` says proved, with the proved set's size and counting
     bound (recounted here), and the summary prints it beside the width."""
