@@ -379,7 +379,7 @@ def assign_window(xyz: np.ndarray, radii: np.ndarray, outline, graph: NeighbourG
         others = windows
 
     def solve(repair_from=None, min_bits=1):
-        fresh = full is not None and others is None and repair_from is None and len(windows) == len(first)
+        fresh = others is None and repair_from is None and len(windows) == len(first)
         problem = full if fresh and full is not None else _keyed(windows, xyz, tolerance_m, others)
         if repair_from is not None:
             got = window_code.repair_labels(repair_from[0], n, *problem[:3], repair_from[1], seed=seed,
