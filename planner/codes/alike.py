@@ -1,15 +1,12 @@
-"""The pairs that must differ, for irregular sites with tens of millions of them: listed and searched in numba.
+"""Listed pairs of triples that must differ, held compactly and searched in numba.
 
-:mod:`planner.codes.pairwise` lists every (window, triple) pair that reads alike under equal labels
-with a KD-tree and indexes each luminaire's six places in them: about 250 bytes and 5 us per pair,
-so the hexagonal and jittered sites of issue 34 (49 and 42 million pairs) took 10-12 GB and 3-5
-minutes to list. The groups of :mod:`planner.codes.classes` avoid the listing on lattices, where
-congruent triples form cliques, but on an irregular site the shapes form a continuum and chain
-into a few huge groups (the jittered site: 4 groups, over the tables' budget). Here the same pairs
-are found by a grid over side lengths (cells as wide as the tolerance, 27 cells per window) and kept
-from both of their triples as slots of the other triple and its luminaires in this one's reading order
-(10 bytes a slot). A luminaire's cost of each label is counted from the slots of the triples that hold it. The conflicts are exactly
-those of :func:`planner.verify.rivals.find_rivals` against the same windows and triples.
+:mod:`planner.codes.pairwise` indexes each luminaire's six places in every listed pair: about 250
+bytes and 5 us per pair, so the hexagonal and jittered sites of issue 34 (49 and 42 million pairs)
+took 10-12 GB and 3-5 minutes. Here a pair (window w, triple t, turn r: t's sides turned by r within
+the tolerance of w's) is kept from both of its triples as a slot of the other triple and its
+luminaires in this one's reading order (10 bytes a slot), and a luminaire's cost of each label is
+counted from the slots of the triples that hold it. :mod:`planner.codes.readings` lists here the
+pairs whose triples share a luminaire and finds the others by their labels.
 """
 
 from __future__ import annotations
@@ -17,37 +14,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from planner.verify.rivals import counter_clockwise, sides
+from planner.codes.pairwise import distinct
+from planner.verify.rivals import counter_clockwise
 
 PAIR_BUDGET = 150_000_000
-"""Most pairs listed (about 17 bytes each, so 2.6 GB at most)."""
-
-
-@njit(cache=True)
-def _scan(wsides, ukeys, starts, esides, etriple, eturn, nwin, tol, strides, out_w, out_t, out_r, count_only):
-    """Pairs (window w, triple t, turn r) with t's sides turned by r within ``tol`` of w's; t != w, and
-    t > w when t is a window too (each pair once). Returns how many; fills ``out_*`` unless counting."""
-    n = 0
-    for w in range(len(wsides)):
-        s0, s1, s2 = wsides[w, 0], wsides[w, 1], wsides[w, 2]
-        c0, c1, c2 = np.floor(s0 / tol), np.floor(s1 / tol), np.floor(s2 / tol)
-        for d0 in range(-1, 2):
-            for d1 in range(-1, 2):
-                for d2 in range(-1, 2):
-                    key = int(c0 + d0) * strides[0] + int(c1 + d1) * strides[1] + int(c2 + d2)
-                    at = np.searchsorted(ukeys, key)
-                    if at >= len(ukeys) or ukeys[at] != key:
-                        continue
-                    for e in range(starts[at], starts[at + 1]):
-                        t = etriple[e]
-                        if t == w or (t < nwin and t < w):
-                            continue
-                        if (abs(esides[e, 0] - s0) <= tol and abs(esides[e, 1] - s1) <= tol
-                                and abs(esides[e, 2] - s2) <= tol):
-                            if not count_only:
-                                out_w[n], out_t[n], out_r[n] = w, t, eturn[e]
-                            n += 1
-    return n
+"""Most pairs listed (about 20 bytes each, so 3 GB at most)."""
 
 
 @njit(cache=True)
@@ -158,55 +129,25 @@ def _conflicts(T, start, other, ys, lab, only):
     return total, bad[:n]
 
 
-def _csr(owner: np.ndarray, size: int, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def holding(T: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The triples (rows of ``T``) holding each of the ``n`` luminaires, as CSR: starts (n + 1,), triples."""
+    owner = T.reshape(-1)
     order = np.argsort(owner, kind="stable")
-    return np.searchsorted(owner[order], np.arange(size + 1)).astype(np.int64), items[order].astype(np.int32)
+    return np.searchsorted(owner[order], np.arange(n + 1)).astype(np.int64), (order // 3).astype(np.int32)
 
 
 class AlikeIndex:
-    """Every pair (window, triple of the site) that reads alike under equal labels, as the protocol of
-    :func:`planner.codes.pairwise.search` takes it: a unit is a triple, in conflict when it reads like
-    another. Build with :meth:`build`."""
+    """Listed pairs (rows ``pw``, ``pt`` of the triples ``T`` and turn ``pr``) that read alike under equal labels,
+    as the protocol of :func:`planner.codes.pairwise.search` takes them: a unit is a triple, in conflict
+    when it reads like another; ``lum`` the triples holding each luminaire (:func:`holding`), if known."""
 
-    def __init__(self, n: int, T: np.ndarray, pw: np.ndarray, pt: np.ndarray, pr: np.ndarray):
+    def __init__(self, n: int, T: np.ndarray, pw: np.ndarray, pt: np.ndarray, pr: np.ndarray,
+                 lum: tuple[np.ndarray, np.ndarray] | None = None):
         self.n, self.T, self.pairs = n, T, len(pw)
-        self.lum_start, self.lum_triples = _csr(T.reshape(-1), n, np.repeat(np.arange(len(T)), 3))
+        self.lum_start, self.lum_triples = lum or holding(T, n)
         self.ys = np.empty((2 * len(pw), 3), np.int16 if n < 2 ** 15 else np.int32)
         self.start, self.other = _slots(T, pw, pt, pr, self.ys)
         self._all = np.arange(len(T), dtype=np.int64)
-
-    @classmethod
-    def build(cls, windows: np.ndarray, matches: np.ndarray, xyz: np.ndarray, tolerance_m: float,
-              budget: int | None = None) -> AlikeIndex | None:
-        """The index of ``windows`` against themselves and ``matches`` (the site's triples within the tolerance
-        of a window, :func:`planner.verify.rivals.shape_matches`); None when more than ``budget`` pairs
-        (default :data:`PAIR_BUDGET`)."""
-        xy = xyz[:, :2]
-        win = counter_clockwise(np.unique(np.sort(np.asarray(windows, np.int64).reshape(-1, 3), axis=1), axis=0), xy)
-        other = counter_clockwise(np.asarray(matches, np.int64).reshape(-1, 3), xy)
-        other = other[~rows_in(np.sort(other, axis=1), np.sort(win, axis=1))]
-        other = other[np.unique(np.sort(other, axis=1), axis=0, return_index=True)[1]]
-        T = np.ascontiguousarray(np.vstack([win, other]).astype(np.int32))
-        tol = tolerance_m + 1e-9
-        es = np.stack([sides(np.roll(T, -r, axis=1), xyz) for r in range(3)], axis=1).reshape(-1, 3)
-        cells = np.floor(es / tol).astype(np.int64)
-        span = int(cells.max()) + 3
-        strides = np.array([span * span, span], np.int64)
-        key = cells[:, 0] * strides[0] + cells[:, 1] * strides[1] + cells[:, 2]
-        order = np.argsort(key, kind="stable")
-        ukeys, starts = np.unique(key[order], return_index=True)
-        starts = np.append(starts, len(order)).astype(np.int64)
-        esides = np.ascontiguousarray(es[order])
-        etriple, eturn = order // 3, (order % 3).astype(np.int8)  # entry t * 3 + r: triple t turned by r
-        wsides = np.ascontiguousarray(sides(win, xyz))
-        args = (wsides, ukeys, starts, esides, etriple, eturn, len(win), tol, strides)
-        empty = np.empty(0, np.int32)
-        count = _scan(*args, empty, empty, np.empty(0, np.int8), True)
-        if count > (PAIR_BUDGET if budget is None else budget):
-            return None
-        pw, pt, pr = np.empty(count, np.int32), np.empty(count, np.int32), np.empty(count, np.int8)
-        _scan(*args, pw, pt, pr, False)
-        return cls(len(xyz), T, pw, pt, pr)
 
     # The protocol of :func:`planner.codes.pairwise.search`.
 
@@ -230,6 +171,27 @@ class AlikeIndex:
     def moved(self, i: int, old: int, lab: np.ndarray) -> list[int]:
         return _cost(self.T, self.lum_start, self.lum_triples, self.start, self.other, self.ys, i, lab, 1,
                      True)[1].tolist()
+
+
+def triples(windows: np.ndarray, matches: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, int]:
+    """The distinct ``windows`` then the ``matches`` that are not windows, each once (the first met), both in the
+    order of their sorted members, counter-clockwise ((M, 3) int32); and how many of them are windows."""
+    xy, n = xyz[:, :2], len(xyz)
+
+    def code(rows: np.ndarray) -> np.ndarray:
+        r = np.sort(rows, axis=1)
+        return (r[:, 0] * n + r[:, 1]) * n + r[:, 2]
+
+    held = distinct(code(np.asarray(windows, np.int64).reshape(-1, 3)))
+    win = counter_clockwise(np.column_stack([held // (n * n), held // n % n, held % n]), xy)
+    other = np.asarray(matches, np.int64).reshape(-1, 3)
+    key = code(other)
+    at = np.searchsorted(held, key).clip(max=max(len(held) - 1, 0))
+    fresh = held[at] != key if len(held) else np.ones(len(key), bool)
+    order = np.flatnonzero(fresh)[np.argsort(key[fresh], kind="stable")]
+    first = np.r_[True, key[order[1:]] != key[order[:-1]]] if len(order) else np.zeros(0, bool)
+    other = counter_clockwise(other[order[first]], xy)
+    return np.ascontiguousarray(np.vstack([win, other]).astype(np.int32)), len(win)
 
 
 def rows_in(rows: np.ndarray, among: np.ndarray) -> np.ndarray:

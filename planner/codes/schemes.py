@@ -26,8 +26,9 @@ import numpy as np
 from planner.camera.model import Camera
 from planner.codes import classes, pairwise
 from planner.codes import window as window_code
-from planner.codes.alike import AlikeIndex, rows_in
+from planner.codes.alike import rows_in
 from planner.codes.assignment import Assignment, bits_for, tile_regions
+from planner.codes.readings import ReadingIndex
 from planner.defaults import INSTALL_TOLERANCE_M
 from planner.graph import NeighbourGraph
 from planner.layout.model import area_m2
@@ -174,7 +175,9 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
 
     Every pair that must differ is listed (:mod:`planner.codes.pairwise`) or, where they are over
     :data:`planner.codes.pairwise.ALIKE_BUDGET` (exact lattices), every group of triples of one
-    shape (:mod:`planner.codes.classes`; ``matches`` gives :meth:`Proof.shape_matches`, found once).
+    shape (:mod:`planner.codes.classes`; ``matches`` gives :meth:`Proof.shape_matches`, found once);
+    on irregular sites the pairs of triples sharing a luminaire are listed and the others found by
+    their labels (:mod:`planner.codes.readings`).
     Widths are tried from the counting bound up, each by min-conflicts for at most
     :data:`PROVED_STEPS_PER_LUMINAIRE` moves per luminaire; a width that falls short seeds the next
     with its best labels (valid labels there too, with the conflicts it left to resolve), so a
@@ -192,10 +195,11 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     else:
         found = matches() if matches else shape_matches(triangles, xyz, tolerance_m)
         groups = classes.shape_groups(triangles, xyz, tolerance_m, found)  # a lattice: congruent cliques
-        if groups is None:  # an irregular site: every pair, compactly (tens of millions)
-            lean = AlikeIndex.build(triangles, found, xyz, tolerance_m)
-            if lean is not None:
-                index, per, size = lean, HOPELESS_PER_LUMINAIRE, {"alike_pairs": lean.pairs}
+        if groups is None:  # an irregular site: pairs sharing a luminaire listed, the others found by labels
+            keyed = ReadingIndex.build(triangles, found, xyz, tolerance_m)
+            if keyed is not None:
+                index, per, size = keyed, HOPELESS_PER_LUMINAIRE, {"listed_pairs": keyed.local.pairs,
+                                                                  "triples": len(keyed.T)}
             else:  # cells of the tolerance's width: no two triples congruent
                 groups = classes.shape_groups(triangles, xyz, tolerance_m, found, resolution_m=tolerance_m)
         if groups is None and index is None:  # neither the pairs nor the groups fit

@@ -114,6 +114,10 @@ def _readings(triples: np.ndarray, xyz: np.ndarray, ids: np.ndarray) -> _Reading
     return _Readings(np.concatenate(codes), np.concatenate(lengths), np.concatenate(trip), np.concatenate(rows))
 
 
+JOIN_CHUNK = 5_000_000
+"""Most (window reading, site reading) candidate pairs :func:`find_rivals` compares at once (about 120 bytes each)."""
+
+
 def find_rivals(windows: np.ndarray, xyz: np.ndarray, ids: np.ndarray, tolerance_m: float,
                 site: np.ndarray | None = None) -> list[tuple[int, tuple[int, int, int]]]:
     """Pairs (window row, rival triple) for every physical triple that reads like a window.
@@ -133,13 +137,20 @@ def find_rivals(windows: np.ndarray, xyz: np.ndarray, ids: np.ndarray, tolerance
     order = np.argsort(s.code, kind="stable")
     s_code = s.code[order]
     lo, hi = np.searchsorted(s_code, q.code, "left"), np.searchsorted(s_code, q.code, "right")
-    n = hi - lo
-    qi = np.repeat(np.arange(len(q.code)), n)
-    si = order[np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
-    near = np.all(np.abs(q.sides[qi] - s.sides[si]) <= tolerance_m + 1e-9, axis=1)
-    same = np.sort(q.triple[qi], axis=1) == np.sort(s.triple[si], axis=1)
-    hit = near & ~same.all(axis=1)
-    found = {(int(q.row[a]), _triple(s.triple[b])) for a, b in zip(qi[hit], si[hit])}
+    found: set[tuple[int, tuple[int, int, int]]] = set()
+    cum = np.r_[0, np.cumsum(hi - lo)]
+    start = 0
+    while start < len(q.code):  # a chunk of readings at a time: at most JOIN_CHUNK candidate pairs (or one reading)
+        end = max(start + 1, int(np.searchsorted(cum, cum[start] + JOIN_CHUNK, "right")) - 1)
+        a = np.arange(start, end)
+        n = hi[a] - lo[a]
+        qi = np.repeat(a, n)
+        si = order[np.repeat(lo[a] - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(n.sum())]
+        near = np.all(np.abs(q.sides[qi] - s.sides[si]) <= tolerance_m + 1e-9, axis=1)
+        same = np.sort(q.triple[qi], axis=1) == np.sort(s.triple[si], axis=1)
+        hit = near & ~same.all(axis=1)
+        found |= {(int(q.row[x]), _triple(s.triple[y])) for x, y in zip(qi[hit], si[hit])}
+        start = end
     return sorted(found)
 
 

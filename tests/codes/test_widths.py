@@ -101,7 +101,7 @@ def test_skipped_widths_are_climbed_when_no_other_width_is_met():
 
 
 def test_a_proved_set_over_every_budget_is_still_designed_against(monkeypatch):
-    """When neither the alike pairs (listed or compact) nor the shape groups fit (the hexagonal site's 0 cm
+    """When neither the alike pairs (listed, or found by labels) nor the shape groups fit (the hexagonal site's 0 cm
     set: memory ran out past 17 GB before the compact index), the window scheme designs by cells and
     repairs against the proved triangles too, so no proved window reads like another triple; it is not left to the sampled windows alone."""
     from planner.codes import alike, classes, pairwise
