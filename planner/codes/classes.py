@@ -31,7 +31,7 @@ LINK_BUDGET = 20_000_000
 over :data:`planner.codes.pairwise.ALIKE_BUDGET` has one class per triple, each near thousands (the
 hexagonal site of issue 34 at 0 cm: memory ran out past 17 GB), so it gets no groups."""
 TABLE_BUDGET = 64_000_000
-"""Most (group, label triple) counters kept (two int16 tables, 4 bytes per counter)."""
+"""Most (group, label triple) counters kept in two int16 tables (4 bytes per counter; half as many in int32)."""
 SHAPE_RESOLUTION_M = 1e-6
 """Side lengths equal to this are one exact shape [m] (lattice coordinates carry float noise)."""
 
@@ -217,17 +217,23 @@ class ClassIndex:
         self.m, self.pw = m[order], K ** (2 - pos[order])
         self.start = np.searchsorted(lum[order], np.arange(n + 1))
         size = groups.count * K ** 3
-        self.cw = np.zeros(size, dtype=np.int16)
-        self.cs = np.zeros(size, dtype=np.int16)
+        self.cw = np.zeros(size, dtype=ClassIndex.counter(groups))
+        self.cs = np.zeros(size, dtype=ClassIndex.counter(groups))
         self._moving: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.by_group = np.argsort(groups.group, kind="stable")
         self.group_start = np.searchsorted(groups.group[self.by_group], np.arange(groups.count + 1))
 
     @staticmethod
-    def fits(groups: Groups, K: int) -> bool:
-        """Whether the tables for ``K`` labels are within :data:`TABLE_BUDGET` (and counts within int16)."""
+    def counter(groups: Groups) -> type:
+        """The tables' counter: int16, or int32 where a group holds too many triples for it (a 100,000-luminaire
+        lattice: one shape per luminaire and turn)."""
         biggest = np.bincount(groups.group).max() if len(groups.group) else 0
-        return groups.count * K ** 3 <= TABLE_BUDGET and biggest < 2 ** 15
+        return np.int16 if biggest < 2 ** 15 else np.int32
+
+    @staticmethod
+    def fits(groups: Groups, K: int) -> bool:
+        """Whether the tables for ``K`` labels are within :data:`TABLE_BUDGET` (counted in int16 counters)."""
+        return groups.count * K ** 3 * np.dtype(ClassIndex.counter(groups)).itemsize <= 2 * TABLE_BUDGET
 
     def _keys(self, lab: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         t = lab[self.T[rows]]

@@ -109,6 +109,21 @@ def test_too_many_labels_for_the_table_budget_do_not_fit():
     assert not ClassIndex.fits(groups, 2 ** 12)
 
 
+def test_a_group_too_large_for_16_bit_counters_is_counted_in_32_bits():
+    """On a 100,000-luminaire lattice a shape holds more triples than int16 counts: every group was refused and
+    the site fell to the sampled design. 40,000 triples of one group, all reading alike, count every pair."""
+    from planner.codes.classes import Groups
+
+    m, windows = 40_000, 100
+    triples = np.column_stack([np.arange(m), np.arange(m) + m, np.arange(m) + 2 * m])
+    groups = Groups(triples, np.zeros(m, np.int64), np.arange(m) < windows)
+    assert ClassIndex.counter(groups) is np.int32 and ClassIndex.fits(groups, 2)
+    total, bad = ClassIndex(3 * m, groups, 2).begin(np.zeros(3 * m, np.int64))
+    assert total == windows * (windows - 1) // 2 + windows * (m - windows) and len(bad) == m
+    small = Groups(triples[:1000], np.zeros(1000, np.int64), np.arange(1000) < windows)
+    assert ClassIndex.counter(small) is np.int16
+
+
 def test_the_clique_bound_counts_the_largest_set_of_windows_of_one_shape():
     """Copies of one L triangle (any of its four turns) read alike under equal labels, so each needs
     its own label triple: 64 copies fit 4 labels (4^3), 73 need 5. On an exact triangular lattice the
