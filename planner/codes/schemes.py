@@ -173,11 +173,11 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
                   hopeless_per_luminaire: float | None = None) -> ProvedLabels | None:
     """The fewest bits whose labels keep every window of a complete set apart from every triple of the site.
 
-    Every pair that must differ is listed (:mod:`planner.codes.pairwise`) or, where they are over
-    :data:`planner.codes.pairwise.ALIKE_BUDGET` (exact lattices), every group of triples of one
-    shape (:mod:`planner.codes.classes`; ``matches`` gives :meth:`Proof.shape_matches`, found once);
-    on irregular sites the pairs of triples sharing a luminaire are listed and the others found by
-    their labels (:mod:`planner.codes.readings`).
+    The pairs that must differ are those of a window and a triple of the site within the tolerance of
+    it (``matches`` gives :meth:`Proof.shape_matches`, found once): the pairs of triples sharing a
+    luminaire are listed and the others found by their labels (:mod:`planner.codes.readings`); where
+    those are over :data:`planner.codes.alike.PAIR_BUDGET`, every group of triples of one shape
+    (:mod:`planner.codes.classes`).
     Widths are tried from the counting bound up, each by min-conflicts for at most
     :data:`PROVED_STEPS_PER_LUMINAIRE` moves per luminaire; a width that falls short seeds the next
     with its best labels (valid labels there too, with the conflicts it left to resolve), so a
@@ -189,24 +189,18 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
     """
     n = len(xyz)
     index: pairwise.ConflictIndex | None = None
-    pairs = pairwise.alike_pairs(triangles, xyz, tolerance_m, budget=pairwise.ALIKE_BUDGET)
-    if pairs is not None:
-        index, per, size = pairwise.Index(n, pairs), HOPELESS_PER_LUMINAIRE, {"alike_pairs": len(pairs)}
-    else:
-        found = matches() if matches else shape_matches(triangles, xyz, tolerance_m)
-        groups = classes.shape_groups(triangles, xyz, tolerance_m, found)  # a lattice: congruent cliques
-        if groups is None:  # an irregular site: pairs sharing a luminaire listed, the others found by labels
-            keyed = ReadingIndex.build(triangles, found, xyz, tolerance_m)
-            if keyed is not None:
-                index, per, size = keyed, HOPELESS_PER_LUMINAIRE, {"listed_pairs": keyed.local.pairs,
-                                                                  "triples": len(keyed.T)}
-            else:  # cells of the tolerance's width: no two triples congruent
-                groups = classes.shape_groups(triangles, xyz, tolerance_m, found, resolution_m=tolerance_m)
-        if groups is None and index is None:  # neither the pairs nor the groups fit
+    groups: classes.Groups | None = None
+    found = matches() if matches else shape_matches(triangles, xyz, tolerance_m)
+    keyed = ReadingIndex.build(triangles, found, xyz, tolerance_m)
+    if keyed is not None:
+        index, per, size = keyed, HOPELESS_PER_LUMINAIRE, {"listed_pairs": keyed.local.pairs, "triples": len(keyed.T)}
+    else:  # congruent cliques (a lattice), else cells of the tolerance's width
+        groups = (classes.shape_groups(triangles, xyz, tolerance_m, found)
+                  or classes.shape_groups(triangles, xyz, tolerance_m, found, resolution_m=tolerance_m))
+        if groups is None:  # neither the pairs nor the groups fit
             return None
-        if groups is not None:
-            per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
-                                                            "grouped_triples": len(groups.triples)}
+        per, size = HOPELESS_IN_GROUPS_PER_LUMINAIRE, {"shape_groups": groups.count,
+                                                        "grouped_triples": len(groups.triples)}
 
     def index_for(K: int) -> pairwise.ConflictIndex | None:
         if index is not None:

@@ -66,12 +66,12 @@ def test_a_width_over_the_tables_budget_parts_the_conflicts_left_below_it(monkey
     TABLE_BUDGET, so it fell to one ID per luminaire (10 bits). Here the same on a proved 4 x 6 grid, its
     tables allowed 2 bits only: the 2-bit labels (conflicts left) get one more bit chosen to part every
     pair they leave alike. The result passes the independent check against every proved window."""
-    from planner.codes import classes, pairwise
+    from planner.codes import alike, classes
 
     xyz, radii = _site(grid_xy(4, 6, 0.5, 0.5))
     proof = prove_window_set(xyz, radii, Camera(), 0.03)
     assert proof.triangles is not None
-    monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 0)  # the shape groups, as on large lattices
+    monkeypatch.setattr(alike, "PAIR_BUDGET", 0)  # the shape groups, as where the pairs are over their budget
     groups = classes.shape_groups(proof.triangles, xyz, TOL, proof.shape_matches(TOL))
     assert groups is not None
     monkeypatch.setattr(classes, "TABLE_BUDGET", groups.count * 4 ** 3)  # 2 bits fit, 3 do not
