@@ -28,7 +28,7 @@ from planner.verify.rivals import counter_clockwise, shape_matches, sides
 
 LINK_BUDGET = 20_000_000
 """Most (class, class within the tolerance) links joined into groups: an irregular site whose pairs are
-over :data:`planner.codes.pairwise.ALIKE_BUDGET` has one class per triple, each near thousands (the
+over :data:`planner.codes.alike.PAIR_BUDGET` has one class per triple, each near thousands (the
 hexagonal site of issue 34 at 0 cm: memory ran out past 17 GB), so it gets no groups."""
 TABLE_BUDGET = 64_000_000
 """Most (group, label triple) counters kept in two int16 tables (4 bytes per counter; half as many in int32)."""

@@ -1,25 +1,24 @@
-"""Labels against a complete window set, pair by pair.
+"""Labels against a complete window set: the min-conflicts search, and an index of listed pairs.
 
 Where the window set is proved complete (:mod:`planner.verify.proof`), the IDs need not
 be searched by shape cells (:mod:`planner.codes.window`, a safe over-approximation that
-calls triples up to two tolerances apart alike): the pairs that must differ can be listed
-exactly. A pair is a window and another triple of the site (a window or not) whose sides,
+calls triples up to two tolerances apart alike): the pairs that must differ are exact. A
+pair is a window and another triple of the site (a window or not) whose sides,
 counter-clockwise in one rotation, each differ by at most the tolerance; the labels are
 valid when no pair has equal labels in all three corresponding places, which is exactly
-the verdict of :func:`planner.verify.rivals.find_rivals`. Labels are found by min-conflicts
-search with a tabu list; budgets are steps, so the result depends on the seed only.
+the verdict of :func:`planner.verify.rivals.find_rivals`. The pairs are held by
+:mod:`planner.codes.readings` (or groups, :mod:`planner.codes.classes`); :class:`Index`
+holds listed ones (the pairs left alike by shorter labels, :func:`planner.codes.schemes.split_labels`).
+Labels are found by min-conflicts search with a tabu list; budgets are steps, so the
+result depends on the seed only.
 """
 
 from __future__ import annotations
 
-from itertools import chain
 from typing import Protocol
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
-
-from planner.verify.rivals import counter_clockwise, longest_side, sides, triples_of_pairs
 
 NOISE = 0.05
 """Share of steps that move a random luminaire of the chosen conflict (to its best other label)."""
@@ -27,99 +26,6 @@ TABU_STEPS = 10
 """Steps for which a luminaire may not return to the label it just left."""
 STALL_STEPS = 300
 """Moves without a new fewest count of conflicts after which a search gives up."""
-ALIKE_BUDGET = 12_000_000
-"""Most (window, triple, rotation) shape matches listed (about 100 bytes each while listing)."""
-SITE_BUDGET = 36_000_000
-"""Most triples of the site short enough to match a window (counted from above before they are made) that
-the listing holds with their sides and KD-tree (about 100 bytes each); beyond it, as beyond
-:data:`ALIKE_BUDGET`, the pairs are not listed (a 10,000-luminaire irregular site holds 114 million)."""
-_CHUNK = 20_000
-"""Windows whose matches are listed at once."""
-
-
-def _canonical(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """One row (a0 a1 a2 b0 b1 b2) per pair, the same for every rotation and either order."""
-    return _canonical_rows(np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64))
-
-
-@njit(cache=True)
-def _canonical_rows(a, b):
-    """:func:`_canonical`: each pair turned so that its first triple starts at that triple's smallest luminaire,
-    in the order (``a`` first or ``b`` first) whose row is lexicographically smaller."""
-    out = np.empty((len(a), 6), dtype=np.int64)
-    one = np.empty(6, dtype=np.int64)
-    two = np.empty(6, dtype=np.int64)
-    for p in range(len(a)):
-        ra, rb = np.argmin(a[p]), np.argmin(b[p])
-        for c in range(3):
-            one[c], one[3 + c] = a[p, (c + ra) % 3], b[p, (c + ra) % 3]
-            two[c], two[3 + c] = b[p, (c + rb) % 3], a[p, (c + rb) % 3]
-        swap = False
-        for c in range(6):
-            if two[c] != one[c]:
-                swap = two[c] < one[c]
-                break
-        out[p] = two if swap else one
-    return out
-
-
-def alike_pairs(windows: np.ndarray, xyz: np.ndarray, tolerance_m: float, site: np.ndarray | None = None,
-                budget: int = ALIKE_BUDGET) -> np.ndarray | None:
-    """Every pair (window, other triple) that reads alike whenever the labels agree.
-
-    ``windows`` (M x 3 luminaire indices), ``xyz`` (N x 3 [m]), ``tolerance_m`` the largest
-    side difference the receiver cannot tell apart [m]; ``site`` the triples a window must
-    not read like (default: every triple short enough). Returns (P x 6) int64 rows
-    ``a0 a1 a2 b0 b1 b2``: ``a`` reads like ``b`` when label ``a_j`` equals label ``b_j`` for
-    every ``j``. Each pair appears once, whatever its rotation or order. None when more than
-    ``budget`` (window, triple, rotation) matches are found, or the site has more than
-    :data:`SITE_BUDGET` triples to match.
-    """
-    windows = np.unique(np.sort(np.asarray(windows, dtype=np.int64).reshape(-1, 3), axis=1), axis=0)
-    if len(windows) == 0:
-        return np.empty((0, 6), dtype=np.int64)
-    if site is None:
-        near = cKDTree(xyz[:, :2]).query_pairs(longest_side(windows, xyz) + tolerance_m + 1e-9, output_type="ndarray")
-        deg = np.bincount(near.min(axis=1), minlength=len(xyz)) if len(near) else np.zeros(1, np.int64)
-        if int((deg * (deg - 1) // 2).sum()) > SITE_BUDGET:  # at least as many as the site's triples
-            return None
-        site = triples_of_pairs(near, len(xyz))
-    win = counter_clockwise(windows, xyz[:, :2])
-    other = counter_clockwise(np.asarray(site, dtype=np.int64).reshape(-1, 3), xyz[:, :2])
-    tree = cKDTree(sides(other, xyz))
-    every = max(1, len(win) // 2000)  # estimated from every so many windows first: listing them is slow
-    if every > 1 and every * sum(int(tree.query_ball_point(sides(np.roll(win[::every], -r, axis=1), xyz),
-                                                           tolerance_m + 1e-9, p=np.inf, return_length=True).sum())
-                                 for r in range(3)) > 2 * budget:
-        return None
-    parts, found = [], 0
-    for r in range(3):
-        for start in range(0, len(win), _CHUNK):
-            w = np.roll(win[start:start + _CHUNK], -r, axis=1)
-            hits = tree.query_ball_point(sides(w, xyz), tolerance_m + 1e-9, p=np.inf, return_sorted=False)
-            n = np.fromiter(map(len, hits), np.int64, len(hits))
-            found += int(n.sum())
-            if found > budget:
-                return None
-            u = other[np.fromiter(chain.from_iterable(hits), np.int64, int(n.sum()))]
-            a = np.repeat(w, n, axis=0)
-            differ = (np.sort(a, axis=1) != np.sort(u, axis=1)).any(axis=1)
-            parts.append(_unique_rows(_canonical(a[differ], u[differ]), len(xyz)))
-    return _unique_rows(np.concatenate(parts), len(xyz))
-
-
-def _unique_rows(rows: np.ndarray, n: int) -> np.ndarray:
-    """``np.unique(rows, axis=0)`` for rows of six indices below ``n``; one int64 key each when they fit."""
-    if n ** 6 >= 2 ** 63:
-        return np.unique(rows, axis=0)
-    key = np.zeros(len(rows), dtype=np.int64)
-    for c in range(6):
-        key = key * n + rows[:, c]
-    key = distinct(key)
-    out = np.empty((len(key), 6), dtype=np.int64)
-    for c in range(5, -1, -1):
-        key, out[:, c] = np.divmod(key, n)
-    return out
 
 
 def distinct(values: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
-"""The pairs that must differ on irregular sites too large to list them: found by their labels.
+"""The pairs of triples that must differ, too many to list: those sharing a luminaire listed, the rest found by labels.
 
 A pair is a window and another triple of the site whose sides, in one turn, each lie within the
-tolerance of the window's (:func:`planner.codes.pairwise.alike_pairs`). On an irregular site a window
+tolerance of the window's (:mod:`planner.codes.pairwise`). On an irregular site a window
 is near thousands of triples in shape, all over the site, so the pairs grow with the square of the
 site: the 10,000-luminaire site of issue 34 has about a billion. Under given labels only the few that
 also read alike matter. Here the pairs whose triples share a luminaire are listed

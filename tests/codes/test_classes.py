@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 
 from conftest import grid_xy, hex_xy
 from planner.codes.classes import ClassIndex, clique_lower_bound, shape_groups
-from planner.codes.pairwise import alike_pairs, search
+from planner.codes.pairwise import search
 from planner.verify.rivals import find_rivals, site_triples
 
 TOL = 0.05
@@ -77,13 +77,11 @@ def test_cost_deltas_and_moves_match_a_count_from_scratch(xy, seed):
 
 
 def test_a_lattice_too_big_for_pairs_is_cleared_by_the_groups_and_find_rivals_agrees():
-    """An exact 8 x 10 lattice: the listed pairs run over a small budget, the groups do not,
-    and labels of 16 values (4 bits, against 7 for distinct IDs) leave no window reading like
-    any triple of the site."""
+    """An exact 8 x 10 lattice: its congruent triples make one group, and labels of 16 values (4 bits,
+    against 7 for distinct IDs) leave no window reading like any triple of the site."""
     xy = grid_xy(8, 10, 0.6, 0.6)
     xyz = _xyz(xy)
     windows = site_triples(xy, 0.9)
-    assert alike_pairs(windows, xyz, TOL, budget=5_000) is None
     groups = shape_groups(windows, xyz, TOL)
     assert groups.count == 1 and len(groups.triples) == len(windows)  # one shape: a clique of 252
     labels, steps = search(ClassIndex(len(xy), groups, 16), 16, seed=0, max_steps=20_000)
@@ -148,13 +146,14 @@ def test_an_irregular_site_over_the_budgets_is_labelled_by_its_pairs_or_by_group
     links between one-triple classes over theirs, the reading index lists the pairs sharing a luminaire and
     finds the others by their labels; with those over its budget too, the groups are cells of the
     tolerance's width. Either way no window reads like any triple."""
-    from planner.codes import alike, classes, pairwise
+    from listing import alike_pairs
+
+    from planner.codes import alike, classes
     from planner.codes.schemes import proved_labels
 
     xy = grid_xy(8, 10, 0.6, 0.6, jitter_m=0.03, seed=3)
     xyz = _xyz(xy)
     windows = site_triples(xy, 0.9)
-    monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 2_000)
     monkeypatch.setattr(classes, "LINK_BUDGET", 5_000)
     assert shape_groups(windows, xyz, TOL) is None
     got = proved_labels(windows, xyz, TOL)

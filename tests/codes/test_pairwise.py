@@ -1,13 +1,15 @@
-"""Labels against a complete window set: the listed pairs are exactly the rivals, and search clears them."""
+"""Labels against a complete window set: the listed pairs (``listing``, the tests' reference) are exactly the
+rivals, and search over their index clears them."""
 import itertools
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from listing import alike_pairs
 
 from conftest import grid_xy
-from planner.codes.pairwise import Index, alike_pairs, conflicts, search
-from planner.verify.rivals import find_rivals, longest_side, site_triples
+from planner.codes.pairwise import Index, conflicts, search
+from planner.verify.rivals import find_rivals, site_triples
 
 TOL = 0.05
 
@@ -72,27 +74,6 @@ def test_search_says_so_when_no_labels_exist():
     assert search(Index(6, pairs), 1, max_steps=100) == (None, 0)
     labels, _ = search(Index(6, pairs), 2, max_steps=100)
     assert labels is not None and len(conflicts(pairs, labels)) == 0
-
-
-def test_over_budget_returns_none():
-    xy = grid_xy(3, 4, 0.5, 0.5)
-    windows = site_triples(xy, 0.75)
-    assert alike_pairs(windows, _xyz(xy), TOL, budget=10) is None
-
-
-def test_a_site_with_too_many_triples_to_match_is_not_listed(monkeypatch):
-    """The site's triples are counted from above before they are made: over the budget, no pairs (None),
-    at the count itself the same pairs as ever."""
-    from planner.codes import pairwise
-
-    xy = grid_xy(4, 5, 0.5, 0.5)
-    windows = site_triples(xy, 0.75)
-    full = alike_pairs(windows, _xyz(xy), TOL)
-    made = len(site_triples(xy, longest_side(windows, _xyz(xy)) + TOL + 1e-9))
-    monkeypatch.setattr(pairwise, "SITE_BUDGET", made - 1)  # the count is an upper bound: at least the triples
-    assert alike_pairs(windows, _xyz(xy), TOL) is None
-    monkeypatch.setattr(pairwise, "SITE_BUDGET", 10 * made)
-    assert np.array_equal(alike_pairs(windows, _xyz(xy), TOL), full)
 
 
 def test_a_luminaire_in_two_places_of_one_pair_is_scored_in_full():

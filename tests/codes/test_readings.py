@@ -1,8 +1,9 @@
 """The index that lists the pairs sharing a luminaire and finds the others by their labels: the conflicts and
-cost deltas of the listed pairs (:func:`pairwise.alike_pairs`), and a search that clears a jittered site."""
+cost deltas of the listed pairs (``listing.alike_pairs``), and a search that clears a jittered site."""
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from listing import alike_pairs
 from test_classes import TOL, _xyz, sites
 
 from conftest import grid_xy
@@ -32,7 +33,7 @@ def test_the_index_has_the_listed_conflicts_and_exact_cost_deltas_through_moves(
     rng = np.random.default_rng(seed)
     site = site_triples(xy, 1.2)
     windows = site[rng.random(len(site)) < 0.4]
-    listed = pairwise.alike_pairs(windows, xyz, TOL)
+    listed = alike_pairs(windows, xyz, TOL)
     index = ReadingIndex.build(windows, shape_matches(windows, xyz, TOL), xyz, TOL)
     assert index is not None and index.local.pairs <= len(listed)
     lab = rng.integers(0, K, len(xy))

@@ -104,11 +104,10 @@ def test_a_proved_set_over_every_budget_is_still_designed_against(monkeypatch):
     """When neither the alike pairs (listed, or found by labels) nor the shape groups fit (the hexagonal site's 0 cm
     set: memory ran out past 17 GB before the compact index), the window scheme designs by cells and
     repairs against the proved triangles too, so no proved window reads like another triple; it is not left to the sampled windows alone."""
-    from planner.codes import alike, classes, pairwise
+    from planner.codes import alike, classes
     from planner.codes.schemes import assign_window
     from planner.graph import build_graph
 
-    monkeypatch.setattr(pairwise, "ALIKE_BUDGET", 0)
     monkeypatch.setattr(alike, "PAIR_BUDGET", 0)
     monkeypatch.setattr(classes, "LINK_BUDGET", 0)
     xy = grid_xy(3, 6, 0.5, 0.5)
@@ -126,14 +125,14 @@ def test_a_large_proved_set_is_designed_against_without_making_every_short_tripl
     """Past the readings' budget (a 10,000-luminaire irregular site: 570,390 proved windows, 114 million
     triples short enough), rivals are searched among the proof's shape matches, never among every short
     triple of the site, and the result still leaves no proved window reading like another triple."""
-    from planner.codes import alike, classes, pairwise, schemes
+    from planner.codes import alike, classes, schemes
     from planner.graph import build_graph
     from planner.verify import rivals
 
     def never(*args):
         raise AssertionError("every short triple of the site was made")
 
-    for module, name, value in ((pairwise, "ALIKE_BUDGET", 0), (alike, "PAIR_BUDGET", 0), (classes, "LINK_BUDGET", 0),
+    for module, name, value in ((alike, "PAIR_BUDGET", 0), (classes, "LINK_BUDGET", 0),
                                 (schemes, "MAX_READINGS", 10), (schemes, "site_triples", never),
                                 (rivals, "site_triples", never)):
         monkeypatch.setattr(module, name, value)
