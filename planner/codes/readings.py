@@ -263,7 +263,7 @@ class ReadingIndex:
         self.T, self.S = local.T, S  # the triples (windows first) and their sides [m]
         self.tol = tolerance_m + 1e-9
         self.w = CELL_TOLERANCES * self.tol
-        self.span = int(self.S.max() / self.w) + 2  # cells 0..span-1 (a query reaches one past the largest)
+        self.span = int(self.S.max(initial=0.0) / self.w) + 2  # cells 0..span-1 (a query reaches one past the largest)
         labels = max(self.n, 2)
         self.strides = np.array([self.span ** 2 * 3 * labels ** 2, self.span * 3 * labels ** 2,
                                  3 * labels ** 2, labels ** 2, labels], np.int64) if self.fits else np.zeros(5, np.int64)

@@ -75,6 +75,17 @@ def test_pairs_of_triples_far_apart_are_not_listed_but_found():
     assert index.cost(5, apart, 4).tolist() == [0, 0, 1, 0]  # luminaire 5 back at label 2: one pair again
 
 
+def test_a_site_with_no_window_has_nothing_to_keep_apart():
+    """A sparse house (lights 5 m apart): no pose sees three, the proved set is empty; the index is empty too."""
+    from planner.codes.schemes import proved_labels
+
+    xyz = _xyz(np.array([[2 + 5 * i, 2 + 5 * j] for j in range(3) for i in range(4)], float))
+    index = ReadingIndex.build(np.empty((0, 3), np.int64), np.empty((0, 3), np.int64), xyz, TOL)
+    assert index is not None and len(index.T) == 0 and index.begin(np.zeros(12, np.int64)) == (0, [])
+    got = proved_labels(np.empty((0, 3), np.int64), xyz, TOL)
+    assert got is not None and got.labels is not None and got.detail["triples"] == 0
+
+
 def test_over_the_budget_there_is_no_index():
     xy = grid_xy(4, 5, 0.5, 0.5, jitter_m=0.02, seed=1)
     windows = site_triples(xy, 1.2)
