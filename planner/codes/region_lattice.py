@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.codes.pairwise import distinct
+
 
 @dataclass(frozen=True)
 class LatticeCode:
@@ -100,9 +102,11 @@ def try_block(cells: np.ndarray, fixed: np.ndarray, a: int, b: int, d: int) -> t
     alphabet = a * d
     per_coset = alphabet // 8
     ri, rj, m, c = _reduce(cells, a, b, d)
-    groups, regions = np.unique(np.stack([m, c], axis=1), axis=0, return_inverse=True)
+    key = (m - m.min()) * (int(c.max() - c.min()) + 1) + (c - c.min())  # (m, c) in lexicographic order
+    groups = distinct(key)  # numpy's unique of rows is slow: a 100,000-luminaire lattice tries thousands of blocks
     if len(groups) > per_coset:
         return None
+    regions = np.searchsorted(groups, key)
     fixed_parity = int((cells[fixed][0].sum()) % 2) if fixed.any() else 0
     fixed_rank, coset, within = _domain_tables(a, d, fixed_parity)
     ids = np.empty(len(cells), dtype=np.int64)
