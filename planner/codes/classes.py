@@ -217,8 +217,9 @@ class ClassIndex:
         self.m, self.pw = m[order], K ** (2 - pos[order])
         self.start = np.searchsorted(lum[order], np.arange(n + 1))
         size = groups.count * K ** 3
-        self.cw: np.ndarray = np.zeros(size, dtype=ClassIndex.counter(groups))
-        self.cs: np.ndarray = np.zeros(size, dtype=ClassIndex.counter(groups))
+        counter = ClassIndex.counter(groups)
+        self.cw: np.ndarray = np.zeros(size, dtype=counter)
+        self.cs: np.ndarray = np.zeros(size, dtype=counter)
         self._moving: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.by_group = np.argsort(groups.group, kind="stable")
         self.group_start = np.searchsorted(groups.group[self.by_group], np.arange(groups.count + 1))

@@ -217,9 +217,10 @@ def _remote_conflicts(T, S, nwin, lab, tol, w, strides, wkeys, whead, wmask, mke
 
 @njit(cache=True)
 def _shared_pairs(T, S, nwin, lum_start, lum_triples, tol, out_w, out_t, out_r, count_only):
-    """The pairs of :func:`planner.codes.alike._scan` whose triples share a luminaire, found among the triples
-    holding each luminaire x (sorted by a side, so a window looks only at those within the tolerance of its
-    first), each once: at the smallest luminaire the two share. Returns how many; fills ``out_*`` unless counting."""
+    """The pairs (window w, triple t, turn r: t's sides turned by r within ``tol`` of w's; t > w when t is a
+    window too) whose triples share a luminaire, found among the triples holding each luminaire x (sorted by
+    a side, so a window looks only at those within the tolerance of its first), each once: at the smallest
+    luminaire the two share. Returns how many; fills ``out_*`` unless counting."""
     n = 0
     for x in range(len(lum_start) - 1):
         held = lum_triples[lum_start[x]:lum_start[x + 1]]
@@ -254,6 +255,11 @@ def _shared_pairs(T, S, nwin, lum_start, lum_triples, tol, out_w, out_t, out_r, 
     return n
 
 
+def _span(S: np.ndarray, w: float) -> int:
+    """Side cells per side (0..span-1) for sides ``S`` [m] in cells ``w`` wide: a lookup reaches one past the largest."""
+    return int(S.max(initial=0.0) / w) + 2
+
+
 class ReadingIndex:
     """The protocol of :func:`planner.codes.pairwise.search` over every pair of a window and a triple that read alike
     under equal labels, with only those of triples sharing a luminaire listed (``local``). Build with :meth:`build`."""
@@ -263,10 +269,9 @@ class ReadingIndex:
         self.T, self.S = local.T, S  # the triples (windows first) and their sides [m]
         self.tol = tolerance_m + 1e-9
         self.w = CELL_TOLERANCES * self.tol
-        self.span = int(self.S.max(initial=0.0) / self.w) + 2  # cells 0..span-1 (a query reaches one past the largest)
-        labels = max(self.n, 2)
-        self.strides = np.array([self.span ** 2 * 3 * labels ** 2, self.span * 3 * labels ** 2,
-                                 3 * labels ** 2, labels ** 2, labels], np.int64) if self.fits else np.zeros(5, np.int64)
+        span, labels = _span(S, self.w), max(self.n, 2)
+        self.strides = np.array([span ** 2 * 3 * labels ** 2, span * 3 * labels ** 2, 3 * labels ** 2, labels ** 2,
+                                 labels], np.int64)
         wsize, msize = (1 << int(np.ceil(np.log2(max(6 * m, 16)))) for m in (nwin, len(self.T) - nwin))
         # two tables, at most half full (three keys per triple): the windows', and the other triples'
         self.tables: tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray, int] = (
@@ -275,11 +280,6 @@ class ReadingIndex:
         self.nxt, self.prv, self.slot = (np.empty(3 * len(self.T), np.int32) for _ in range(3))
         self._all = np.arange(len(self.T), dtype=np.int64)
 
-    @property
-    def fits(self) -> bool:
-        """Whether every key fits 63 bits."""
-        return self.span ** 3 * 3 * max(self.n, 2) ** 2 < 2 ** 63
-
     @classmethod
     def build(cls, windows: np.ndarray, matches: np.ndarray, xyz: np.ndarray, tolerance_m: float,
               budget: int | None = None) -> ReadingIndex | None:
@@ -287,15 +287,17 @@ class ReadingIndex:
         window, :func:`planner.verify.rivals.shape_matches`); None when the pairs sharing a luminaire are over
         ``budget`` (default :data:`planner.codes.alike.PAIR_BUDGET`) or the keys would not fit 63 bits."""
         T, nwin = triples(windows, matches, xyz)
-        S, lum = np.ascontiguousarray(sides(T, xyz)), holding(T, len(xyz))
+        S = np.ascontiguousarray(sides(T, xyz))
+        if _span(S, CELL_TOLERANCES * (tolerance_m + 1e-9)) ** 3 * 3 * max(len(xyz), 2) ** 2 >= 2 ** 63:
+            return None  # the keys would not fit 63 bits
+        lum = holding(T, len(xyz))
         args = (T, S, nwin, *lum, tolerance_m + 1e-9)
         count = _shared_pairs(*args, np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0, np.int8), True)
         if count > (alike.PAIR_BUDGET if budget is None else budget):
             return None
         pw, pt, pr = np.empty(count, np.int32), np.empty(count, np.int32), np.empty(count, np.int8)
         _shared_pairs(*args, pw, pt, pr, False)
-        index = cls(AlikeIndex(len(xyz), T, pw, pt, pr, lum), nwin, S, tolerance_m)
-        return index if index.fits else None
+        return cls(AlikeIndex(len(xyz), T, pw, pt, pr, lum), nwin, S, tolerance_m)
 
     def _alike(self, q: int, lab: np.ndarray) -> np.ndarray:
         """The triples sharing no luminaire with ``q`` that read like it under ``lab``."""
