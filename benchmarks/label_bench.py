@@ -5,7 +5,7 @@ Run from the repository root:  python benchmarks/label_bench.py [--sites grid-51
 
 For each site and install tolerance: the window set of every pose (:func:`planner.verify.proof.possible_windows`
 with the proof's budgets lifted, as the sites over them are not proved by ``vlp-plan`` today), then
-:func:`planner.codes.schemes.proved_labels` against it. Prints one line per case: luminaires, windows,
+:func:`planner.codes.proved.proved_labels` against it. Prints one line per case: luminaires, windows,
 the counting bound (bits), the bits found, the widths tried with the conflicts each left, whether the
 result is within 2 bits of the bound (issue 34's Done-when), the proof's and the label search's wall
 time [s] and the process's peak RSS. Every labelling is checked independently
@@ -31,7 +31,7 @@ from sites import hexagonal_site, jittered_site, square_lattice  # noqa: E402
 
 from planner.camera.model import Camera  # noqa: E402
 from planner.codes.assignment import bits_for  # noqa: E402
-from planner.codes.schemes import proved_labels  # noqa: E402
+from planner.codes.proved import proved_labels  # noqa: E402
 from planner.studies.efficiency import paper_grid  # noqa: E402
 from planner.verify.envelope import NotProvable, envelope  # noqa: E402
 from planner.verify.proof import possible_windows  # noqa: E402

@@ -8,7 +8,7 @@ counter-clockwise in one rotation, each differ by at most the tolerance; the lab
 valid when no pair has equal labels in all three corresponding places, which is exactly
 the verdict of :func:`planner.verify.rivals.find_rivals`. The pairs are held by
 :mod:`planner.codes.readings` (or groups, :mod:`planner.codes.classes`); :class:`Index`
-holds listed ones (the pairs left alike by shorter labels, :func:`planner.codes.schemes.split_labels`).
+holds listed ones (the pairs left alike by shorter labels, :func:`planner.codes.proved.split_labels`).
 Labels are found by min-conflicts search with a tabu list; budgets are steps, so the
 result depends on the seed only.
 """

@@ -9,7 +9,8 @@ import numpy as np
 
 from planner.camera.model import Camera, Poses
 from planner.codes.assignment import assign_paper
-from planner.codes.schemes import assign_unique, assign_window, window_set_bound
+from planner.codes.proved import window_set_bound
+from planner.codes.schemes import assign_unique, assign_window
 from planner.modulation.timing import smallest_window_image_rows
 from planner.parallel import Runner
 from planner.receivers.base import Job, Planned, Receiver

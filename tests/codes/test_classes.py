@@ -149,7 +149,7 @@ def test_an_irregular_site_over_the_budgets_is_labelled_by_its_pairs_or_by_group
     from listing import alike_pairs
 
     from planner.codes import alike, classes
-    from planner.codes.schemes import proved_labels
+    from planner.codes.proved import proved_labels
 
     xy = grid_xy(8, 10, 0.6, 0.6, jitter_m=0.03, seed=3)
     xyz = _xyz(xy)

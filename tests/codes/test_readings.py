@@ -77,7 +77,7 @@ def test_pairs_of_triples_far_apart_are_not_listed_but_found():
 
 def test_a_site_with_no_window_has_nothing_to_keep_apart():
     """A sparse house (lights 5 m apart): no pose sees three, the proved set is empty; the index is empty too."""
-    from planner.codes.schemes import proved_labels
+    from planner.codes.proved import proved_labels
 
     xyz = _xyz(np.array([[2 + 5 * i, 2 + 5 * j] for j in range(3) for i in range(4)], float))
     index = ReadingIndex.build(np.empty((0, 3), np.int64), np.empty((0, 3), np.int64), xyz, TOL)

@@ -9,7 +9,7 @@ import numpy as np
 from conftest import ROOT, grid_xy
 from planner.camera.model import Camera
 from planner.codes.assignment import Assignment, bits_for
-from planner.codes.schemes import proved_labels, window_set_bound
+from planner.codes.proved import proved_labels, window_set_bound
 from planner.verify.proof import Proof, prove_window_set
 from planner.verify.rivals import find_rivals
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M
