@@ -24,6 +24,7 @@ import math
 from itertools import chain
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from planner.verify.envelope import Envelope
@@ -42,6 +43,73 @@ _TOP_BATCH = 1000
 """First-level cells searched together (depth first by batches keeps the rows in memory few)."""
 
 
+@njit(cache=True)
+def _cone(ax, ay, qx, qy, rho, px, py, m):  # pragma: no cover - compiled
+    """Whether ``p`` lies deeper than ``m`` in ``conv({a} ∪ D(q, rho))`` (:func:`_in_cone`, one point)."""
+    inner = rho - m
+    if not (inner > 0 and rho > 0):
+        return False
+    wx, wy = px - qx, py - qy
+    if wx * wx + wy * wy < inner * inner:
+        return True
+    vx, vy = qx - ax, qy - ay
+    length = np.sqrt(vx * vx + vy * vy)
+    r = max(rho, 1e-12)
+    ell = max(length - m * length / r, 0.0)  # |apex - q|
+    if not ell > inner:
+        return False
+    f, e = m / r, max(length, 1e-12)
+    rx, ry = px - (ax + vx * f), py - (ay + vy * f)
+    t = rx * (vx / e) + ry * (vy / e)  # along the axis from the apex towards q
+    dist = np.sqrt(rx * rx + ry * ry)
+    sin_b = min(max(inner / max(ell, 1e-12), 0.0), 1.0)
+    cos_b = np.sqrt(1.0 - sin_b * sin_b)
+    return t > cos_b * dist and t < ell * cos_b * cos_b
+
+
+@njit(cache=True)
+def _depth(ax, ay, bx, by, cx, cy, px, py):  # pragma: no cover - compiled
+    """Depth of ``p`` in the triangle ``a b c``: least distance inside its sides, < 0 outside (-inf if flat)."""
+    turn = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    if turn == 0:
+        return -np.inf
+    orient = 1.0 if turn > 0 else -1.0
+    depth = np.inf
+    for ux, uy, vx, vy in ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay)):
+        ex, ey = vx - ux, vy - uy
+        length = max(np.sqrt(ex * ex + ey * ey), 1e-12)
+        depth = min(depth, orient * (ex * (py - uy) - ey * (px - ux)) / length)
+    return depth
+
+
+@njit(cache=True)
+def _cones(a, q, rho, xy, cand, m):  # pragma: no cover - compiled
+    out = np.zeros(cand.shape, dtype=np.bool_)
+    for r in range(cand.shape[0]):
+        for k in range(cand.shape[1]):
+            c = cand[r, k]
+            out[r, k] = _cone(a[r, 0], a[r, 1], q[r, 0], q[r, 1], rho[r], xy[c, 0], xy[c, 1], m)
+    return out
+
+
+@njit(cache=True)
+def _excluded(xy, radii, ai, bi, q, rho, cand, m):  # pragma: no cover - compiled
+    out = np.zeros(len(ai), dtype=np.bool_)
+    for r in range(len(ai)):
+        a, b = ai[r], bi[r]
+        ax, ay, bx, by, qx, qy = xy[a, 0], xy[a, 1], xy[b, 0], xy[b, 1], q[r, 0], q[r, 1]
+        for k in range(cand.shape[1]):
+            c = cand[r, k]
+            if c == a or c == b or radii[c] > min(radii[a], radii[b]):
+                continue
+            px, py = xy[c, 0], xy[c, 1]
+            if ((rho[r] >= 0 and _depth(ax, ay, bx, by, qx, qy, px, py) > m)
+                    or _cone(ax, ay, qx, qy, rho[r], px, py, m) or _cone(bx, by, qx, qy, rho[r], px, py, m)):
+                out[r] = True
+                break
+    return out
+
+
 def _in_cone(a: np.ndarray, q: np.ndarray, rho: np.ndarray, x: np.ndarray, m: float) -> np.ndarray:
     """Whether ``x`` (N, K, 2) lies deeper than ``m`` in ``conv({a} ∪ D(q, rho))`` (a, q (N, 2), rho (N,)).
 
@@ -49,42 +117,23 @@ def _in_cone(a: np.ndarray, q: np.ndarray, rho: np.ndarray, x: np.ndarray, m: fl
     radius ``m`` touches both tangents (``m |a - q| / rho`` from ``a``); that set's ``m``-neighbourhood
     lies in the cone, so each of its points is deeper than ``m``.
     """
-    v = q - a
-    length = np.linalg.norm(v, axis=1)
-    inner = rho - m
-    ok = (inner > 0) & (rho > 0)
-    apex = a + v * (m / np.maximum(rho, 1e-12))[:, None]
-    ell = np.maximum(length - m * length / np.maximum(rho, 1e-12), 0.0)  # |apex - q|
-    w = x - q[:, None]
-    in_disc = np.einsum("nkd,nkd->nk", w, w) < (inner * inner)[:, None]
-    e = v / np.maximum(length, 1e-12)[:, None]
-    rel = x - apex[:, None]
-    t = np.einsum("nkd,nd->nk", rel, e)  # along the axis from the apex towards q
-    dist = np.linalg.norm(rel, axis=2)
-    sin_b = np.clip(inner / np.maximum(ell, 1e-12), 0.0, 1.0)
-    cos_b = np.sqrt(1.0 - sin_b * sin_b)
-    in_wedge = (t > cos_b[:, None] * dist) & (t < (ell * cos_b * cos_b)[:, None])
-    return ok[:, None] & (in_disc | ((ell > inner)[:, None] & in_wedge))
+    n, k = x.shape[:2]
+    return _cones(a, q, rho, x.reshape(-1, 2), np.arange(n * k).reshape(n, k), m)
 
 
 def _pair_excluded(xy, radii, a_idx, b_idx, q, rho, tree, m) -> np.ndarray:
     """Whether a disc no larger than both members lies deeper than ``m`` in ``conv({a, b} ∪ D(q, rho))`` (R,).
 
     Tested on two parts of that hull: the cones ``conv({a} ∪ D(q, rho))``, ``conv({b} ∪ D(q, rho))``
-    (:func:`_in_cone`) and the triangle ``a b q`` (depth beyond ``m`` from each side)."""
+    (:func:`_in_cone`) and the triangle ``a b q`` (depth beyond ``m`` from each side; it lies in every
+    ``q``'s hull of the cell, so it is tested wherever ``rho >= 0``)."""
     out = np.zeros(len(a_idx), dtype=bool)
     n = len(xy)
     for s in range(0, len(a_idx), _ROWS):
         sl = slice(s, s + _ROWS)
-        ai, bi, qq, rr = a_idx[sl], b_idx[sl], q[sl], rho[sl]
-        a, b = xy[ai], xy[bi]
-        cand = np.hstack([_near(tree, qq, min(_NEAR_Q, n)), _near(tree, 0.5 * (a + b), min(_NEAR_ALONG, n))])
-        valid = (cand != ai[:, None]) & (cand != bi[:, None])
-        valid &= radii[cand] <= np.minimum(radii[ai], radii[bi])[:, None]
-        x = xy[cand]
-        tri = (_triangle_depth(a, b, qq, x) > m) & (rr >= 0)[:, None]  # the triangle a b q0 lies in every q's hull
-        deep = _in_cone(a, qq, rr, x, m) | _in_cone(b, qq, rr, x, m) | tri
-        out[sl] = (deep & valid).any(axis=1)
+        ai, bi, qq = a_idx[sl], b_idx[sl], q[sl]
+        cand = np.hstack([_near(tree, qq, min(_NEAR_Q, n)), _near(tree, 0.5 * (xy[ai] + xy[bi]), min(_NEAR_ALONG, n))])
+        out[sl] = _excluded(xy, radii, ai, bi, qq, rho[sl], cand, m)
     return out
 
 
@@ -111,14 +160,10 @@ def _both_in_view(xy, a_idx, b_idx, q, g, env) -> np.ndarray:
 
 def _triangle_depth(a: np.ndarray, b: np.ndarray, c: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Depth of ``x`` (N, K, 2) in the triangles ``a b c`` (N, 2 each): least distance inside its sides, < 0 outside."""
-    orient = np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-    depth = np.full(x.shape[:2], np.inf)
-    for u, v in ((a, b), (b, c), (c, a)):
-        e = v - u
-        length = np.maximum(np.linalg.norm(e, axis=1), 1e-12)
-        cross = e[:, None, 0] * (x[..., 1] - u[:, None, 1]) - e[:, None, 1] * (x[..., 0] - u[:, None, 0])
-        depth = np.minimum(depth, orient[:, None] * cross / length[:, None])
-    return np.where((orient != 0)[:, None], depth, -np.inf)
+    out = np.empty(x.shape[:2])
+    for r, k in np.ndindex(*x.shape[:2]):
+        out[r, k] = _depth(a[r, 0], a[r, 1], b[r, 0], b[r, 1], c[r, 0], c[r, 1], x[r, k, 0], x[r, k, 1])
+    return out
 
 
 def _cells(env: Envelope, xy: np.ndarray, area: np.ndarray | None, spread: float, half: float) -> np.ndarray:
@@ -280,28 +325,37 @@ def _first_rows(xy, radii, centre, live, inside, idx, tree, rho_in, member_reach
     cand = np.sort(np.hstack(parts), axis=1)
     dup = np.zeros(cand.shape, dtype=bool)
     dup[:, 1:] = cand[:, 1:] == cand[:, :-1]
-    deep = np.zeros(cand.shape, dtype=bool)
-    for r in range(0, len(mem), _ROWS):
-        sl = slice(r, r + _ROWS)
-        deep[sl] = _in_cone(a[sl], q[sl], np.full(len(a[sl]), rho_in), xy[cand[sl]], m)
+    deep = _cones(a, q, np.full(len(mem), rho_in), xy, cand, m)
     deep &= ~dup & (cand != mem[:, None]) & small[cand]
     nblock = deep.sum(axis=1)
     blocker = np.where(nblock == 1, cand[np.arange(len(mem)), np.argmax(deep, axis=1)], -1)
     ok = nblock <= 1
     cell_of, mem, blocker = cell_of[ok], mem[ok], blocker[ok]  # sorted by cell already
     starts = np.flatnonzero(np.r_[True, cell_of[1:] != cell_of[:-1]])
-    sizes = np.diff(np.r_[starts, len(cell_of)])
-    out = []
-    for k in np.unique(sizes):
-        if k < 2:
-            continue
-        st = starts[sizes == k]
-        i, j = np.triu_indices(k, 1)
-        ri, rj = (st[:, None] + i[None]).ravel(), (st[:, None] + j[None]).ravel()
-        ai, bi = mem[ri], mem[rj]
-        good = ((blocker[ri] < 0) | (blocker[ri] == bi)) & ((blocker[rj] < 0) | (blocker[rj] == ai))
-        rows = np.column_stack([cell_of[ri], np.minimum(ai, bi), np.maximum(ai, bi)])[good]
-        rows = rows[_forced_ok(rows, inside, idx)]
-        rows = rows[np.linalg.norm(xy[rows[:, 1]] - xy[rows[:, 2]], axis=1) <= pair_reach]
-        out.append(_not_kept(rows, kept, n))
-    return np.vstack(out) if out else np.empty((0, 3), np.int64)
+    rows = _cell_pairs(xy, cell_of, mem, blocker, starts, np.diff(np.r_[starts, len(cell_of)]), inside, idx, pair_reach)
+    return _not_kept(rows, kept, n)
+
+
+@njit(cache=True)
+def _cell_pairs(xy, cell_of, mem, blocker, starts, sizes, inside, idx, pair_reach):  # pragma: no cover - compiled
+    """(cell, a, b) rows, ``a < b``, of the members of each cell (``mem[starts[g]:starts[g] + sizes[g]]``)
+    taken two at a time: neither blocked by a third LED, the cell's forced LEDs among them (:func:`_forced_ok`),
+    at most ``pair_reach`` apart."""
+    out = np.empty((int(np.sum(sizes * (sizes - 1) // 2)), 3), dtype=np.int64)
+    count = 0
+    for g in range(len(starts)):
+        s, k, cell = starts[g], sizes[g], cell_of[starts[g]]
+        for i in range(s, s + k - 1):
+            for j in range(i + 1, s + k):
+                a, b = mem[i], mem[j]
+                if not ((blocker[i] < 0 or blocker[i] == b) and (blocker[j] < 0 or blocker[j] == a)):
+                    continue
+                forced = True
+                for t in range(idx.shape[1]):
+                    if inside[cell, t] and idx[cell, t] != a and idx[cell, t] != b:
+                        forced = False
+                dx, dy = xy[a, 0] - xy[b, 0], xy[a, 1] - xy[b, 1]
+                if forced and np.sqrt(dx * dx + dy * dy) <= pair_reach:
+                    out[count, 0], out[count, 1], out[count, 2] = cell, min(a, b), max(a, b)
+                    count += 1
+    return out[:count]
