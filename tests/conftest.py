@@ -1,5 +1,6 @@
-"""Shared test helpers: synthetic layouts, the bundled 512 grid planned once per run, and the
-``slow`` marker (``pytest -m "not slow"`` is the fast subset: see the README)."""
+"""Shared test helpers: synthetic layouts, the bundled 512 grid planned once per run, the ``slow`` marker
+(``pytest -m "not slow"`` is the fast subset: see the README) and the ``acceptance`` marker (an issue's Done-when
+run at full size, deselected unless ``--acceptance``: ``benchmarks/acceptance.py`` runs them)."""
 
 import hashlib
 import io
@@ -22,11 +23,25 @@ SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
 """Fixtures that plan a large site or run a whole study (tens of seconds): every test using one is ``slow``."""
 
 
-def pytest_collection_modifyitems(items):
+def pytest_addoption(parser):
+    parser.addoption("--acceptance", action="store_true",
+                     help="also collect the tests marked acceptance: the issues' Done-when runs at full size (300-pose "
+                          "twins, 20-photo sets, issue 34's large sites), about an hour on 2 cores; the suite runs each "
+                          "smaller with the same assertions. benchmarks/acceptance.py runs them and prints their figures")
+
+
+def pytest_collection_modifyitems(config, items):
     for item in items:
         names = set(getattr(item, "fixturenames", ()))
         if names & SLOW_FIXTURES or {f"{item.path.name}:{n}" for n in names} & SLOW_FIXTURES:
             item.add_marker(pytest.mark.slow)
+        if item.get_closest_marker("acceptance"):
+            item.add_marker(pytest.mark.slow)
+    if not config.getoption("--acceptance"):
+        full = [item for item in items if item.get_closest_marker("acceptance")]
+        if full:  # reported as deselected, never as passed
+            config.hook.pytest_deselected(items=full)
+            items[:] = [item for item in items if not item.get_closest_marker("acceptance")]
 
 
 @contextmanager
@@ -52,8 +67,9 @@ def _shared_plan(tmp_path_factory, name: str, leds: int | None, *extra: str, ste
 
     with _shared_folder(tmp_path_factory, stem or Path(name).stem) as out:
         if not (out / "plan.yaml").is_file():
-            plan_main([str(ROOT / "layouts" / name), *(["--leds", str(leds)] if leds else []), "-o", str(out),
-                       "--no-map", "--json", "--error-poses-per-m2", "0", *extra])
+            with redirect_stdout(io.StringIO()):  # the JSON summary: the tests read the files
+                plan_main([str(ROOT / "layouts" / name), *(["--leds", str(leds)] if leds else []), "-o", str(out),
+                           "--no-map", "--json", "--error-poses-per-m2", "0", *extra])
     return out
 
 

@@ -11,7 +11,8 @@ quarter, either way: a frame site's rows then run either way in time). The phone
 within 20 cm of the rig's centre, tilted up to 10 deg.
 The fast tests take two poses at fewer pixels: a tone site's at a quarter (half the focal length, twice the row
 time: the same stripes per LED), a frame site's 12 MP at the 33 MP's pitch (a frame needs its rows a chip), the
-phone within 10 cm of the centre; the slow ones the Done-when's 20 poses at 33 MP.
+phone within 10 cm of the centre; the Done-when's 20 poses at 33 MP run under ``--acceptance``
+(``benchmarks/acceptance.py``: rendering and reading 80 photos, about 6 minutes).
 """
 
 import json
@@ -174,7 +175,7 @@ def test_tone_blobs_say_their_tone_and_its_match(small):
         assert b["problem"] == "" and b["id"] == b["planned_id"]
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance
 def test_twenty_33_mp_tone_photos_locate_within_10_cm(full):
     """The Done-when's figures: at least 19 of 20 poses within 10 cm in each orientation; every tone within 2 %."""
     errors, tones, unread = _check(*full)
@@ -191,7 +192,7 @@ def test_a_frame_site_photo_of_small_leds_locates_landscape_and_turned_either_wa
     assert all(e < 0.10 for e in errors["landscape"] + errors["portrait"]), errors
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance
 def test_twenty_33_mp_frame_site_photos_locate_within_10_cm(frames_full):
     errors, tones, unread = _check(*frames_full)
     print(_figures(errors, tones, unread))
