@@ -73,17 +73,28 @@ def _copy(plans: Path, name: str, tmp_path: Path) -> Path:
     return tmp_path / name / "plan.yaml"
 
 
+NAMES512 = [f"R{r:02d}C{c:02d}" for r in range(1, 17) for c in range(1, 33)]  # grid-512 in plan order
+
+
 @pytest.mark.slow
-def test_every_512_driver_ends_verified_or_failed_and_never_corrupt(site, tmp_path, capsys):
+@pytest.mark.parametrize("drivers", [32, pytest.param(512, marks=pytest.mark.acceptance)])
+def test_every_driver_on_a_faulty_bus_ends_verified_or_failed_and_never_corrupt(drivers, request, tmp_path, capsys):
+    """Every driver of a whole site flashed over one bus that corrupts, resets and cuts power: each ends verified or
+    failed, holding a whole image signed with its own key (the suite: grid-32's 32 drivers; the 512 grid's under
+    ``--acceptance``)."""
+    if drivers == 512:
+        site, plan, names = request.getfixturevalue("site"), "p512/plan.yaml", NAMES512
+    else:
+        site, plan, names = request.getfixturevalue("plans"), "a/plan.yaml", NAMES32
     flash_dir = tmp_path / "flash"
-    sim = subprocess.Popen([sys.executable, "-m", "planner.cli.driver_sim", "--drivers", "512", "--key-file",
+    sim = subprocess.Popen([sys.executable, "-m", "planner.cli.driver_sim", "--drivers", str(drivers), "--key-file",
                             str(site / "key"), "--flash-dir", str(flash_dir), "--faults",
                             "corrupt=0.001,reset=0.01,power=0.01,seed=3"],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         pty = sim.stdout.readline().strip()
         journal = tmp_path / "as-built.json"
-        code = console_main([str(site / "p512" / "plan.yaml"), "--all", "--bus", "--port", pty, "--key-file",
+        code = console_main([str(site / plan), "--all", "--bus", "--port", pty, "--key-file",
                              str(site / "key"), "--journal", str(journal)])
     finally:
         sim.send_signal(signal.SIGTERM)
@@ -91,12 +102,13 @@ def test_every_512_driver_ends_verified_or_failed_and_never_corrupt(site, tmp_pa
     out, err = capsys.readouterr()
     assert KEY.hex() not in out + err + journal.read_text()  # the site key never shows
     entries = _entries(journal)
-    assert len(entries) == 512 and code in (0, 3)
+    assert len(entries) == drivers and code in (0, 3)
     verified = [n for n, e in entries.items() if e["verified"]]
-    assert len(verified) >= 500  # faults cost retries, not drivers
-    for k in range(1, 513):
+    assert len(verified) >= drivers - drivers // 40  # faults cost retries, not drivers (at most 12 of 512)
+    print(f"{len(verified)} of {drivers} drivers verified over the faulty bus")
+    for k in range(1, drivers + 1):
         driver = _booted(flash_dir / f"SIM-{k:06d}.flash")
-        e = entries[f"R{(k - 1) // 32 + 1:02d}C{(k - 1) % 32 + 1:02d}"]
+        e = entries[names[k - 1]]
         assert e["where"].endswith(f"@{k}")
         if e["verified"]:
             assert e["driver_serial"] == f"SIM-{k:06d}" and driver.active_sha256.hex() == e["image_sha256"]
