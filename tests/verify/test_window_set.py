@@ -5,7 +5,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, accepted, grid_xy, hex_xy, jittered_xy, poisson_xy
+from conftest import ROOT, accepted, grid_xy, hex_xy, jittered_xy, poisson_xy, shared_vlp_plan
 from planner.camera.model import Camera
 from planner.layout.model import Layout, Luminaire, area_m2
 from planner.layout.read import read_layout
@@ -134,10 +134,17 @@ def test_default_plans_of_the_bundled_layouts_show_no_ambiguous_pose_on_fresh_de
                                                                                             request):
     """Issue 13, first Done-when line, on every bundled layout: five samples (the suite: one) at ten times the
     default density with seeds the planner never used, each window against every triple. The two
-    large grids are the run's shared default plans (conftest), written by vlp-plan."""
+    large grids are the run's shared default plans (conftest), written by vlp-plan; the outline room is the README's
+    command, run once per test run (tests/advice/test_advice.py checks its advice)."""
     layout = read_layout(ROOT / "layouts" / name, leds)
+    shared = None
     if name in ("grid-256.yaml", "grid-512.yaml"):
         shared = load_plan(request.getfixturevalue(f"plan{len(layout.luminaires)}_dir") / "plan.yaml")
+    elif name == "outline-room.dxf":
+        run = shared_vlp_plan(request.getfixturevalue("tmp_path_factory"), "layouts/outline-room.dxf", "--leds", "128",
+                              "--json", "--no-report", "--no-map", "--error-poses-per-m2", "0")
+        shared = load_plan(run.outdir / "plan.yaml")
+    if shared is not None:
         assert [e.name for e in shared.luminaires] == [lum.name for lum in layout.luminaires]
         ids, camera, scheme = shared.ids, shared.camera_model(), shared.scheme
     else:
