@@ -26,7 +26,7 @@ SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
 def pytest_addoption(parser):
     parser.addoption("--acceptance", action="store_true",
                      help="also collect the tests marked acceptance: the issues' Done-when runs at full size (300-pose "
-                          "twins, 20-photo sets, issue 34's large sites), about an hour on 2 cores; the suite runs each "
+                          "twins, 20-photo sets, issue 34's large sites), about 25 minutes on 2 cores; the suite runs each "
                           "smaller with the same assertions. benchmarks/acceptance.py runs them and prints their figures")
 
 
