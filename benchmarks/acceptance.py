@@ -20,7 +20,11 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def main() -> int:
-    return subprocess.call(["pytest", "tests", "--acceptance", "-m", "acceptance", "-n", "auto", "--dist", "loadfile",
+    pytest = Path(sys.executable).with_name("pytest")  # this environment's, against the installed package
+    if not pytest.is_file():
+        sys.exit(f"acceptance: {pytest} not found: install the package with its tests in this environment "
+                 "(pip install '.[test]')")
+    return subprocess.call([str(pytest), "tests", "--acceptance", "-m", "acceptance", "-n", "auto", "--dist", "loadfile",
                             "-q", "-rP", "--durations=0", "--durations-min=1", *sys.argv[1:]], cwd=ROOT)
 
 
