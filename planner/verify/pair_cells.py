@@ -121,8 +121,9 @@ def _in_cone(a: np.ndarray, q: np.ndarray, rho: np.ndarray, x: np.ndarray, m: fl
     return _cones(a, q, rho, x.reshape(-1, 2), np.arange(n * k).reshape(n, k), m)
 
 
-def _pair_excluded(xy, radii, a_idx, b_idx, q, rho, tree, m) -> np.ndarray:
-    """Whether a disc no larger than both members lies deeper than ``m`` in ``conv({a, b} ∪ D(q, rho))`` (R,).
+def _pair_excluded(xy, radii, a_idx, b_idx, centre, cell, rho, tree, m) -> np.ndarray:
+    """Whether a disc no larger than both members lies deeper than ``m`` in ``conv({a, b} ∪ D(q, rho))`` (R,),
+    ``q = centre[cell]`` (the LEDs nearest each cell's centre are found once for all its rows).
 
     Tested on two parts of that hull: the cones ``conv({a} ∪ D(q, rho))``, ``conv({b} ∪ D(q, rho))``
     (:func:`_in_cone`) and the triangle ``a b q`` (depth beyond ``m`` from each side; it lies in every
@@ -131,9 +132,11 @@ def _pair_excluded(xy, radii, a_idx, b_idx, q, rho, tree, m) -> np.ndarray:
     n = len(xy)
     for s in range(0, len(a_idx), _ROWS):
         sl = slice(s, s + _ROWS)
-        ai, bi, qq = a_idx[sl], b_idx[sl], q[sl]
-        cand = np.hstack([_near(tree, qq, min(_NEAR_Q, n)), _near(tree, 0.5 * (xy[ai] + xy[bi]), min(_NEAR_ALONG, n))])
-        out[sl] = _excluded(xy, radii, ai, bi, qq, rho[sl], cand, m)
+        ai, bi = a_idx[sl], b_idx[sl]
+        used, inv = np.unique(cell[sl], return_inverse=True)
+        near_q = _near(tree, centre[used], min(_NEAR_Q, n))[inv]
+        cand = np.hstack([near_q, _near(tree, 0.5 * (xy[ai] + xy[bi]), min(_NEAR_ALONG, n))])
+        out[sl] = _excluded(xy, radii, ai, bi, centre[cell[sl]], rho[sl], cand, m)
     return out
 
 
@@ -221,7 +224,7 @@ def _search(xy, radii, env, area, spread, outside_by, tree, centre, half, kept: 
         if not len(rows):
             return
         rows = _witnesses(xy, radii, rows, centre, dist, idx, kept, tree, env, area, spread, outside_by, m)
-        gone = _pair_excluded(xy, radii, rows[:, 1], rows[:, 2], centre[rows[:, 0]], np.full(len(rows), rho - g), tree, m)
+        gone = _pair_excluded(xy, radii, rows[:, 1], rows[:, 2], centre, rows[:, 0], np.full(len(rows), rho - g), tree, m)
         rows = rows[~gone]
         if half <= MIN_CELL_M:
             kept.add(rows[:, 1] * n + rows[:, 2])
@@ -288,7 +291,7 @@ def _witnesses(xy, radii, rows, centre, dist, idx, kept, tree, env, area, spread
         hi = 2 * lo + 1
         pick = np.flatnonzero(wit & (rank >= lo) & (rank < hi) & ~done)
         if len(pick):
-            free = ~_pair_excluded(xy, radii, rows[pick, 1], rows[pick, 2], centre[rows[pick, 0]],
+            free = ~_pair_excluded(xy, radii, rows[pick, 1], rows[pick, 2], centre, rows[pick, 0],
                                    np.full(len(pick), rho), tree, m)
             kept.add(code[pick[free]])
             done |= kept.has(code)
