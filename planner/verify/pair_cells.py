@@ -44,7 +44,7 @@ _TOP_BATCH = 1000
 
 
 @njit(cache=True)
-def _cone(ax, ay, qx, qy, rho, px, py, m):  # pragma: no cover - compiled
+def _cone(ax, ay, qx, qy, rho, px, py, m):
     """Whether ``p`` lies deeper than ``m`` in ``conv({a} ∪ D(q, rho))`` (:func:`_in_cone`, one point)."""
     inner = rho - m
     if not (inner > 0 and rho > 0):
@@ -68,7 +68,7 @@ def _cone(ax, ay, qx, qy, rho, px, py, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _depth(ax, ay, bx, by, cx, cy, px, py):  # pragma: no cover - compiled
+def _depth(ax, ay, bx, by, cx, cy, px, py):
     """Depth of ``p`` in the triangle ``a b c``: least distance inside its sides, < 0 outside (-inf if flat)."""
     turn = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
     if turn == 0:
@@ -83,7 +83,7 @@ def _depth(ax, ay, bx, by, cx, cy, px, py):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _cones(a, q, rho, xy, cand, m):  # pragma: no cover - compiled
+def _cones(a, q, rho, xy, cand, m):
     out = np.zeros(cand.shape, dtype=np.bool_)
     for r in range(cand.shape[0]):
         for k in range(cand.shape[1]):
@@ -93,7 +93,7 @@ def _cones(a, q, rho, xy, cand, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _excluded(xy, radii, ai, bi, q, rho, cand, m):  # pragma: no cover - compiled
+def _excluded(xy, radii, ai, bi, q, rho, cand, m):
     out = np.zeros(len(ai), dtype=np.bool_)
     for r in range(len(ai)):
         a, b = ai[r], bi[r]
@@ -340,7 +340,7 @@ def _first_rows(xy, radii, centre, live, inside, idx, tree, rho_in, member_reach
 
 
 @njit(cache=True)
-def _cell_pairs(xy, cell_of, mem, blocker, starts, sizes, inside, idx, pair_reach):  # pragma: no cover - compiled
+def _cell_pairs(xy, cell_of, mem, blocker, starts, sizes, inside, idx, pair_reach):
     """(cell, a, b) rows, ``a < b``, of the members of each cell (``mem[starts[g]:starts[g] + sizes[g]]``)
     taken two at a time: neither blocked by a third LED, the cell's forced LEDs among them (:func:`_forced_ok`),
     at most ``pair_reach`` apart."""
