@@ -6,7 +6,6 @@ import hmac
 import json
 import os
 import shutil
-import signal
 import struct
 import subprocess
 import sys
@@ -17,7 +16,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from conftest import ROOT, SITE_KEY, grid32_copy
+from conftest import SITE_KEY, grid32_copy
 from planner.cli.flash import console_main, shown_port
 from planner.errors import UsageError
 from planner.firmware.image import CRC_OFFSET, MAX_IMAGE_VERSION, SIGNATURE_OFFSET, config_image, parse_config_image
@@ -73,6 +72,14 @@ def _copy(plans: Path, name: str, tmp_path: Path) -> Path:
     return tmp_path / name / "plan.yaml"
 
 
+def _sim_process(key: Path, flash: Path, faults: str = "", drivers: int = 32) -> tuple[subprocess.Popen, str]:
+    """The installed ``vlp-driver-sim`` serving ``drivers`` simulated drivers on a pseudo-terminal: it and the port."""
+    proc = subprocess.Popen([str(BIN / "vlp-driver-sim"), "--drivers", str(drivers), "--key-file", str(key),
+                             "--flash-dir", str(flash), *(["--faults", faults] if faults else [])],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    return proc, proc.stdout.readline().strip()
+
+
 NAMES512 = [f"R{r:02d}C{c:02d}" for r in range(1, 17) for c in range(1, 33)]  # grid-512 in plan order
 
 
@@ -86,18 +93,13 @@ def test_every_driver_on_a_faulty_bus_ends_verified_or_failed_and_never_corrupt(
         site, plan, names = request.getfixturevalue("site"), "p512/plan.yaml", NAMES512
     else:
         site, plan, names = request.getfixturevalue("plans"), "a/plan.yaml", NAMES32
-    flash_dir = tmp_path / "flash"
-    sim = subprocess.Popen([sys.executable, "-m", "planner.cli.driver_sim", "--drivers", str(drivers), "--key-file",
-                            str(site / "key"), "--flash-dir", str(flash_dir), "--faults",
-                            "corrupt=0.001,reset=0.01,power=0.01,seed=3"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    flash_dir, journal = tmp_path / "flash", tmp_path / "as-built.json"
+    sim, pty = _sim_process(site / "key", flash_dir, "corrupt=0.001,reset=0.01,power=0.01,seed=3", drivers=drivers)
     try:
-        pty = sim.stdout.readline().strip()
-        journal = tmp_path / "as-built.json"
         code = console_main([str(site / plan), "--all", "--bus", "--port", pty, "--key-file",
                              str(site / "key"), "--journal", str(journal)])
     finally:
-        sim.send_signal(signal.SIGTERM)
+        sim.terminate()
         sim.wait(timeout=20)
     out, err = capsys.readouterr()
     assert KEY.hex() not in out + err + journal.read_text()  # the site key never shows
@@ -233,13 +235,6 @@ def test_two_concurrent_runs_on_one_plan_end_with_a_complete_journal(plans, tmp_
     assert [run.returncode for run in runs] == [0, 0], outs
     entries = _entries(journal)
     assert sorted(entries) == sorted(NAMES32) and all(e["verified"] for e in entries.values())
-
-
-def _sim_process(key: Path, flash: Path, faults: str = "") -> tuple[subprocess.Popen, str]:
-    proc = subprocess.Popen([str(BIN / "vlp-driver-sim"), "--drivers", "32", "--key-file", str(key), "--flash-dir",
-                             str(flash), *(["--faults", faults] if faults else [])],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    return proc, proc.stdout.readline().strip()
 
 
 def test_a_port_lost_mid_batch_ends_in_one_line_and_resume_completes_the_journal(plans, tmp_path):
