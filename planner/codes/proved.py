@@ -35,13 +35,18 @@ HOPELESS_IN_GROUPS_PER_LUMINAIRE = 4
 luminaire and a search stalls; 6-bit labels leave 2.1 and are found in 45 moves (2026-12-03)."""
 
 
+def counting_bound(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float) -> int:
+    """Fewest labels that can keep a complete window set apart: the larger of
+    :func:`planner.codes.classes.clique_lower_bound` and :func:`~planner.codes.classes.near_lower_bound`."""
+    return int(max(classes.clique_lower_bound(triangles, xyz), classes.near_lower_bound(triangles, xyz, tolerance_m)))
+
+
 @dataclass(frozen=True)
 class ProvedLabels:
     """Labels designed against a complete window set (:func:`proved_labels`).
 
     ``labels`` (N,) 0..``k``-1, or None when no width below one ID per luminaire was met;
-    ``bound`` the counting lower bound on the labels of this set
-    (:func:`planner.codes.classes.clique_lower_bound`, :func:`~planner.codes.classes.near_lower_bound`);
+    ``bound`` the counting lower bound on the labels of this set (:func:`counting_bound`);
     ``detail`` what ``plan.yaml`` records.
     """
 
@@ -100,8 +105,7 @@ def proved_labels(triangles: np.ndarray, xyz: np.ndarray, tolerance_m: float, *,
         return classes.ClassIndex(n, groups, K) if classes.ClassIndex.fits(groups, K) else None
     hopeless = (per if hopeless_per_luminaire is None else hopeless_per_luminaire) * n
     unique_bits = bits_for(n)
-    bound = max(classes.clique_lower_bound(triangles, xyz),  # no fewer labels can work: not tried
-                classes.near_lower_bound(triangles, xyz, tolerance_m))
+    bound = counting_bound(triangles, xyz, tolerance_m)  # no fewer labels can work: not tried
     max_steps = max(1000, PROVED_STEPS_PER_LUMINAIRE * n)
     tried: list[int] = []
     left: list[int] = []
@@ -198,13 +202,10 @@ def window_set_bound(proof: Proof, xyz: np.ndarray, window: Assignment | None,
     """What ``plan.yaml`` says beside the width (``code.window_set``): whether the window set the IDs
     answer to is proved or sampled, its size and its counting lower bound (labels and bits).
 
-    Proved: the larger of :func:`planner.codes.classes.clique_lower_bound` and
-    :func:`~planner.codes.classes.near_lower_bound` of the proved set, whatever the scheme.
-    Otherwise the window scheme's own bound over the windows it protected (``window``), or None
-    when it was not made."""
+    Proved: :func:`counting_bound` of the proved set, whatever the scheme. Otherwise the window scheme's
+    own bound over the windows it protected (``window``), or None when it was not made."""
     if proof.triangles is not None:
-        labels = max(classes.clique_lower_bound(proof.triangles, xyz),
-                     classes.near_lower_bound(proof.triangles, xyz, tolerance_m))
+        labels = counting_bound(proof.triangles, xyz, tolerance_m)
         return {"set": "proved", "windows": len(proof.triangles), "lower_bound_labels": int(labels),
                 "lower_bound_bits": bits_for(max(labels, 2))}
     if window is None or "lower_bound_labels" not in window.detail:
