@@ -98,9 +98,10 @@ def _excluded(xy, radii, ai, bi, q, rho, cand, m):
     for r in range(len(ai)):
         a, b = ai[r], bi[r]
         ax, ay, bx, by, qx, qy = xy[a, 0], xy[a, 1], xy[b, 0], xy[b, 1], q[r, 0], q[r, 1]
+        largest = min(radii[a], radii[b])  # discs no larger than both members count
         for k in range(cand.shape[1]):
             c = cand[r, k]
-            if c == a or c == b or radii[c] > min(radii[a], radii[b]):
+            if c == a or c == b or radii[c] > largest:
                 continue
             px, py = xy[c, 0], xy[c, 1]
             if ((rho[r] >= 0 and _depth(ax, ay, bx, by, qx, qy, px, py) > m)
