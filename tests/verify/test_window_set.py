@@ -68,6 +68,11 @@ def test_on_a_lattice_the_set_is_the_unimodular_triangles():
     assert len(got) > len(cells)  # and the longer ones with sides 0.5, 0.71, 1.12
 
 
+SAMPLES = pytest.mark.parametrize("samples", [pytest.param(1, id="1-sample"),
+                                               pytest.param(5, id="5-samples", marks=pytest.mark.acceptance)])
+"""Fresh dense samples a check takes: one in the suite, the Done-when's five under ``--acceptance``."""
+
+
 def _no_ambiguous_pose(xy: np.ndarray, seed: int, samples: int) -> None:
     """Done-when of issue 13 on a small irregular site: ``samples`` samples (the Done-when's five) at ten times the
     default density, with seeds the planner never used, against every triple of the site; where the site is within
@@ -100,8 +105,7 @@ def test_default_plans_show_no_ambiguous_pose_on_fresh_dense_samples(xy, seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("samples", [pytest.param(1, id="1-sample"),
-                                     pytest.param(5, id="5-samples", marks=pytest.mark.acceptance)])
+@SAMPLES
 def test_the_jittered_site_of_issue_13_is_proved_and_unambiguous_on_fresh_dense_samples(samples):
     """Issue 13: a 0.6 m lattice of 30 x 16, 20 % empty, moved up to 12 cm, from a seed. The plan
     is proved (every triangle of the proved set is unlike every other triple of the site), and
@@ -127,8 +131,7 @@ BUNDLED = [("grid-32.yaml", None), ("grid-256.yaml", None), ("grid-512.yaml", 51
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("samples", [pytest.param(1, id="1-sample"),
-                                     pytest.param(5, id="5-samples", marks=pytest.mark.acceptance)])
+@SAMPLES
 @pytest.mark.parametrize("name, leds", BUNDLED, ids=[n for n, _ in BUNDLED])
 def test_default_plans_of_the_bundled_layouts_show_no_ambiguous_pose_on_fresh_dense_samples(name, leds, samples,
                                                                                             request):
