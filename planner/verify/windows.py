@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from itertools import chain
 
 import numpy as np
 from matplotlib.path import Path as PolygonPath
@@ -218,13 +219,15 @@ def crossed(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray) -> np.ndarr
     for i, j in ((0, 1), (1, 2), (2, 0)):
         a, b = xy[triples[:, i]], xy[triples[:, j]]
         half = 0.5 * np.linalg.norm(b - a, axis=1)
-        for t, near in enumerate(tree.query_ball_point(0.5 * (a + b), half + big)):
-            near = np.array([k for k in near if k not in triples[t]
-                             and abs(xyz[k, 2] - xyz[triples[t, i], 2]) < SAME_HEIGHT_M], dtype=np.int64)
-            if len(near) == 0 or out[t]:
-                continue
-            gap = segment_distance(a[t][None], b[t][None], xy[near][None])[0]
-            out[t] = bool(np.any(gap < radii[near]))
+        near = tree.query_ball_point(0.5 * (a + b), half + big)
+        counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
+        t = np.repeat(np.arange(len(triples)), counts)  # (triangle, LED) pairs near this side
+        k = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(counts.sum()))
+        other = (k != triples[t, 0]) & (k != triples[t, 1]) & (k != triples[t, 2])
+        other &= np.abs(xyz[k, 2] - xyz[triples[t, i], 2]) < SAME_HEIGHT_M  # another LED, at the side's height
+        t, k = t[other], k[other]
+        gap = segment_distance(a[t], b[t], xy[k][:, None])[:, 0]
+        out[t[gap < radii[k]]] = True
     return out
 
 

@@ -129,8 +129,11 @@ def test_hexagonal_site_pushed_across_its_lines_and_posed_at_the_envelope_bounda
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("poses_per_push", [16_000, pytest.param(80_000, marks=pytest.mark.acceptance)])
 @pytest.mark.parametrize("name,xy", [("lattice 10 x 12, 0.5 m", grid_xy(10, 12, 0.5, 0.5)),
                                      ("hexagonal 9 x 9, 0.7 m", hex_xy(9, 9, 0.7)),
                                      ("jittered 0.6 m, 12 cm", jittered_xy(3)[:160])])
-def test_dense_adversarial_sample_finds_no_window_outside_the_proved_set(name, xy):
-    assert _check(xy, 80_000, 7)[0] > 1000, name
+def test_dense_adversarial_sample_finds_no_window_outside_the_proved_set(name, xy, poses_per_push):
+    """Five pushes of 16,000 poses each in the suite (2,053, 2,141 and 3,219 windows, measured 2026-12-05), of
+    80,000 under ``--acceptance``."""
+    assert _check(xy, poses_per_push, 7)[0] > 1000, name
