@@ -127,7 +127,8 @@ def plan512_dir(tmp_path_factory) -> Path:
     """``grid-512.yaml`` planned once for the whole run (default IDs; firmware and report, no map; sealed under
     ``bytes(range(32))``); read it, never write into it."""
     key = tmp_path_factory.getbasetemp() / "site.key"  # sealed under bytes 0..31, the tests' site key: vlp-flash takes it
-    key.write_text(bytes(range(32)).hex())
+    key.write_text(SITE_KEY.hex())
+    key.chmod(0o600)  # else vlp-plan warns that every user can read it
     return _shared_plan(tmp_path_factory, "grid-512.yaml", 512, "--key-file", str(key))
 
 

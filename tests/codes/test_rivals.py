@@ -11,21 +11,29 @@ from planner.verify import rivals
 from planner.verify.rivals import find_rivals, shape_matches, site_triples
 
 
-def ccw(t, xy):
-    a, b, c = (xy[v] for v in t)
-    return t if (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) >= 0 else (t[0], t[2], t[1])
+def ccw(triples, xy):
+    """Each row of ``triples`` (M, 3) counter-clockwise in plan (its last two swapped where clockwise)."""
+    a, b, c = (xy[triples[:, k]] for k in range(3))
+    cw = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    out = triples.copy()
+    out[cw, 1], out[cw, 2] = triples[cw, 2], triples[cw, 1]
+    return out
 
 
-def reads_like(t, u, xy, ids, tol):
-    """Same IDs counter-clockwise and corresponding sides within tol (plus 1 nm for rounding), for some rotation."""
-    t, u = ccw(t, xy), ccw(u, xy)
-    def side(x, k):
-        return np.linalg.norm(xy[x[(k + 1) % 3]] - xy[x[k]])
-    for r in range(3):
-        v = u[r:] + u[:r]
-        if [ids[a] for a in t] == [ids[a] for a in v] and all(abs(side(t, k) - side(v, k)) <= tol + 1e-9 for k in range(3)):
-            return True
-    return False
+def reads_like(t, us, xy, ids, tol):
+    """For each row u of ``us`` (M, 3): the same IDs counter-clockwise as the triple ``t`` and corresponding sides
+    within tol (plus 1 nm for rounding), for some rotation of u."""
+    t, us = ccw(np.array([t]), xy), ccw(np.asarray(us), xy)
+
+    def sides(x):  # side k runs from x[k] to x[k + 1]
+        return np.linalg.norm(xy[np.roll(x, -1, axis=1)] - xy[x], axis=2)
+
+    side_t, side_u = sides(t), sides(us)
+    hit = np.zeros(len(us), dtype=bool)
+    for r in range(3):  # u rotated to start at its r-th vertex
+        v, side_v = np.roll(us, -r, axis=1), np.roll(side_u, -r, axis=1)
+        hit |= (ids[t] == ids[v]).all(axis=1) & (np.abs(side_t - side_v) <= tol + 1e-9).all(axis=1)
+    return hit
 
 
 sites = st.builds(lambda rows, cols, jitter, seed: grid_xy(rows, cols, 0.5, 0.5, jitter_m=jitter, seed=seed),
@@ -52,9 +60,9 @@ def test_rivals_are_every_triple_that_reads_alike(xy, k, tol, seed):
     windows = np.array(list(itertools.combinations(range(len(xy)), 3)))
     windows = windows[rng.random(len(windows)) < 0.3][:25]
     got = {(w, frozenset(t)) for w, t in find_rivals(windows, xyz, ids, tol)}
+    every = np.array(list(itertools.combinations(range(len(xy)), 3)))
     want = {(m, frozenset(u)) for m, t in enumerate(windows.tolist())
-            for u in itertools.combinations(range(len(xy)), 3)
-            if set(u) != set(t) and reads_like(tuple(t), u, xy, ids, tol)}
+            for u in every[reads_like(t, every, xy, ids, tol) & (every != t).any(axis=1)].tolist()}
     assert got == want
 
 
@@ -79,11 +87,11 @@ def test_shape_matches_are_the_triples_some_labels_could_make_rivals(xy, tol, se
     """Each triple of the site that reads like a window under equal IDs, by brute force, and no other."""
     rng = np.random.default_rng(seed)
     xyz = np.column_stack([xy, np.full(len(xy), 2.5)])
-    every = list(itertools.combinations(range(len(xy)), 3))
-    windows = np.array(every)[rng.random(len(every)) < 0.3][:25].reshape(-1, 3)
+    every = np.array(list(itertools.combinations(range(len(xy)), 3)))
+    windows = every[rng.random(len(every)) < 0.3][:25].reshape(-1, 3)
     same = np.ones(len(xy), dtype=int)
     got = {frozenset(t) for t in shape_matches(windows, xyz, tol).tolist()}
-    want = {frozenset(u) for u in every for t in windows.tolist() if reads_like(tuple(t), u, xy, same, tol)}
+    want = {frozenset(u) for t in windows.tolist() for u in every[reads_like(t, every, xy, same, tol)].tolist()}
     assert want <= got  # a window reads like itself: the windows are matches too
     assert got <= want | {frozenset(t) for t in windows.tolist()}
 
