@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner._files import jinja_environment, write_atomically, write_text_atomically
-from planner.report.asbuilt import asbuilt_lines
 from planner.report.content import (
     advice_section,
     budget_lines,
@@ -123,6 +122,8 @@ def _write_report(plan: PlanFile, plan_hash: str, plan_dir: Path, outdir: Path, 
     html_path, pdf_path = outdir / HTML_NAME, outdir / PDF_NAME
     write_text_atomically(html_path, html)
     sections = [(n, png, m) for _, n, png, _, m in figures]
+    if asbuilt:  # here: the photo check's modules (decoder, locator, twin) take 0.7 s to import
+        from planner.report.asbuilt import asbuilt_lines
     write_atomically(pdf_path, lambda tmp: write_pdf(
         tmp, title, f"{generator} · plan {plan_hash} · {journal_note}", head, sections,
         bill_lines(bill, show_class=show_class), checklist_lines(stops, show_class=show_class),
