@@ -23,6 +23,15 @@ SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
 """Fixtures that plan a large site or run a whole study (tens of seconds): every test using one is ``slow``."""
 
 
+SLOW_MODULES = {"test_plan_seal.py", "test_flash_host.py", "test_journal_chain.py", "test_driver_avr.py",
+                "test_photo.py", "test_phone_photos.py", "test_video.py", "test_advice.py", "test_advice_frames.py",
+                "test_default_receiver.py", "test_verify_verdict.py", "test_tone_site.py", "test_parallel.py",
+                "test_gravity.py", "test_from_plan.py", "test_timings.py", "test_hostile_dxf.py"}
+"""Test files whose tests run the installed commands end to end (plans sealed and flashed over simulated buses, photos
+rendered and located, advice and tone sites planned, emulated drivers): seconds per test, so every test in them is
+``slow`` and the fast subset keeps the checks of one stage at a time."""
+
+
 def pytest_addoption(parser):
     parser.addoption("--acceptance", action="store_true",
                      help="also collect the tests marked acceptance: the issues' Done-when runs at full size (300-pose "
@@ -33,7 +42,8 @@ def pytest_addoption(parser):
 def pytest_collection_modifyitems(config, items):
     for item in items:
         names = set(getattr(item, "fixturenames", ()))
-        if names & SLOW_FIXTURES or {f"{item.path.name}:{n}" for n in names} & SLOW_FIXTURES:
+        if (names & SLOW_FIXTURES or {f"{item.path.name}:{n}" for n in names} & SLOW_FIXTURES
+                or item.path.name in SLOW_MODULES):
             item.add_marker(pytest.mark.slow)
         if item.get_closest_marker("acceptance"):
             item.add_marker(pytest.mark.slow)

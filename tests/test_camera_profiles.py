@@ -73,6 +73,7 @@ def test_vlp_plan_lists_the_cameras_without_a_layout(tmp_path):
     assert bare.returncode == 2 and "required: LAYOUT" in bare.stderr and bare.stderr.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_vlp_plan_and_verify_take_a_profile_by_name(tmp_path):
     out = tmp_path / "out"
     quick = ["--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0", "--poses-per-m2", "20"]

@@ -73,6 +73,7 @@ def photos(tmp_path_factory):
 
 
 @pytest.mark.parametrize("lens", list(LENSES))
+@pytest.mark.slow
 def test_vlp_calibrate_recovers_a_known_camera(tmp_path, photos, lens):
     """Issue 18's Done-when: focal lengths within 0.5 %, reprojection error under 0.3 px."""
     camera = LENSES[lens][0]
@@ -275,6 +276,7 @@ def test_the_papers_focal_length_fit_recovers_a_drifting_focal_length(tmp_path):
     assert bad.returncode == 2 and "--heights far=x.png: give DISTANCE=PHOTO" in bad.stderr
 
 
+@pytest.mark.slow
 def test_a_board_small_in_a_large_photo_is_found_on_the_second_try():
     """Too small to find at 1,000 px (asserted), found at full size (the second try) and refined to its true corners."""
     from planner.calibration.chessboard import DETECT_PX, find_corners
@@ -322,6 +324,7 @@ def test_the_row_time_survives_gamma_saturation_a_lit_ceiling_and_jpeg(tmp_path)
     assert json.loads(done.stdout)["row_time"]["row_time_s"] == pytest.approx(12.5e-6, rel=0.005)
 
 
+@pytest.mark.slow
 def test_a_charuco_board_partly_out_of_view_calibrates_too(tmp_path):
     """ChArUco (--charuco): photos that cut the board off still count, corner by corner."""
     board = Board(9, 6, 0.025, "DICT_5X5_100", 0.018)

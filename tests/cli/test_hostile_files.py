@@ -316,6 +316,7 @@ def test_an_ifc_with_a_dangling_reference_is_one_line(nth, ifc_text, tmp_path, c
 
 # --- a dense drawing, and a killed run --------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_dense_drawing_in_metres_is_read_in_little_memory(tmp_path):
     """20,164 luminaires 0.6 m apart in metres: guessing the unit measured them as millimetres too, merging
     every part with every other (4.9 GB); now the guess takes a sample when parts lie that close."""

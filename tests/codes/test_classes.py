@@ -1,6 +1,7 @@
 """Labels against a proved window set by shape groups: every rival is a group conflict, the cost
 deltas are exact, and search clears lattices whose pairs are too many to list."""
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -28,6 +29,7 @@ def _keys(groups, labels):
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(sites, st.integers(1, 3), st.integers(0, 1000), st.sampled_from([1e-6, TOL / 2, TOL]))
+@pytest.mark.slow
 def test_every_rival_find_rivals_names_is_a_conflict_of_the_groups(xy, k, seed, resolution):
     """Exact lattices (many congruent copies), near-equilateral hexagonal ones (a shape that
     matches itself turned) and jittered sites, with classes of exact shapes or cells of side

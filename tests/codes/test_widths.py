@@ -5,6 +5,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from conftest import ROOT, grid_xy
 from planner.camera.model import Camera
@@ -100,6 +101,7 @@ def test_skipped_widths_are_climbed_when_no_other_width_is_met():
     assert find_rivals(proof.triangles, xyz, got.labels + 1, TOL) == []
 
 
+@pytest.mark.slow
 def test_a_proved_set_over_every_budget_is_still_designed_against(monkeypatch):
     """When neither the alike pairs (listed, or found by labels) nor the shape groups fit (the hexagonal site's 0 cm
     set: memory ran out past 17 GB before the compact index), the window scheme designs by cells and
@@ -121,6 +123,7 @@ def test_a_proved_set_over_every_budget_is_still_designed_against(monkeypatch):
     assert find_rivals(proof.triangles, xyz, a.ids, TOL) == []
 
 
+@pytest.mark.slow
 def test_a_large_proved_set_is_designed_against_without_making_every_short_triple(monkeypatch):
     """Past the readings' budget (a 10,000-luminaire irregular site: 570,390 proved windows, 114 million
     triples short enough), rivals are searched among the proof's shape matches, never among every short

@@ -9,6 +9,8 @@ import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import pytest
+
 SVG = "{http://www.w3.org/2000/svg}"
 
 
@@ -22,6 +24,7 @@ def tick_labels(svg: Path) -> dict[str, list[str]]:
     return labels
 
 
+@pytest.mark.slow
 def test_vlp_accuracy_cdf_ticks_are_plain_numbers(tmp_path):
     svg = tmp_path / "cdf.svg"
     done = subprocess.run(["vlp-accuracy", "--trials", "1", "--tilts", "0,40", "--cdf", str(svg)],

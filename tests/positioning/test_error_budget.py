@@ -159,6 +159,7 @@ def test_the_dominant_term_is_the_largest_contribution_beyond_the_methods_own_er
     assert dominant({"exact": 0.0, "edge": 0.01}) is None
 
 
+@pytest.mark.slow
 def test_vlp_plan_records_the_terms_it_was_given_and_the_report_names_what_is_left_out(tmp_path, capsys):
     from conftest import ROOT
     from planner.cli.plan import main as plan_main

@@ -113,6 +113,7 @@ def test_the_gravity_plans_report_says_what_the_error_figures_include(plans):
         assert "perspective method" not in text
 
 
+@pytest.mark.slow
 def test_the_gravity_plans_error_map_keeps_its_longer_title_inside_the_canvas(tmp_path):
     import matplotlib
 
