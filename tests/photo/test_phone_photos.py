@@ -42,12 +42,17 @@ def _camera(folder, fields: dict):
     return camera
 
 
+PLAN_ONLY = ("--no-report", "--no-map", "--error-poses-per-m2", "0")
+"""The photos are located against plan.yaml alone: no report, maps or error map."""
+
+
 @pytest.fixture(scope="module")
 def tone_plan(tmp_path_factory):
     """The tone rig planned for the 33 MP phone: its plan.yaml."""
     folder = tmp_path_factory.mktemp("tone-rig")
     done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "tone-rig.yaml"), "-o", str(folder / "plan"),
-                           "--camera", str(_camera(folder, PHONE))], capture_output=True, text=True, timeout=600)
+                           "--camera", str(_camera(folder, PHONE)), *PLAN_ONLY], capture_output=True, text=True,
+                          timeout=600)
     assert done.returncode == 0, done.stderr
     return folder / "plan" / "plan.yaml"
 
@@ -61,7 +66,8 @@ def frame_plan(tmp_path_factory):
         del lum["tone_hz"]
     (folder / "frame-rig.yaml").write_text(yaml.safe_dump(layout))
     done = subprocess.run(["vlp-plan", str(folder / "frame-rig.yaml"), "-o", str(folder / "plan"), "--no-firmware",
-                           "--camera", str(_camera(folder, PHONE))], capture_output=True, text=True, timeout=600)
+                           "--camera", str(_camera(folder, PHONE)), *PLAN_ONLY], capture_output=True, text=True,
+                          timeout=600)
     assert done.returncode == 0, done.stderr
     return folder / "plan" / "plan.yaml"
 
