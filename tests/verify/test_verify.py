@@ -10,7 +10,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, grid_xy
+from conftest import ROOT, grid32_copy, grid_xy
 from planner.camera.model import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.schemes import assign_window
 from planner.codes.window import window_keys
@@ -130,13 +130,12 @@ def plan_cli(args, cwd=ROOT):
 
 
 @pytest.mark.slow
-def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path):
-    out = tmp_path / "out"
-    made = plan_cli(["planner.cli.plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheme", "window"])
-    assert made.returncode == 0, made.stderr
+def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_path):
+    out = grid32_copy(tmp_path_factory, tmp_path / "out", "--error-poses-per-m2", "0").parent  # planned once per run
     ok = plan_cli(["planner.cli.verify", str(out / "plan.yaml")])
     assert ok.returncode == 0 and "0 ambiguous" in ok.stdout
     doc = yaml.safe_load((out / "plan.yaml").read_text())
+    assert doc["scheme"] == "window"  # the default scheme chooses the window code on grid-32
     lums = doc["luminaires"]
     xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums])
     ids = np.array([e["id"] for e in lums])
@@ -203,11 +202,8 @@ def test_working_area_is_the_hull_without_an_outline():
 
 
 @pytest.mark.slow
-def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path):
-    out = tmp_path / "out"
-    made = plan_cli(["planner.cli.plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--no-report",
-                     "--no-firmware", "--no-map"])
-    assert made.returncode == 0, made.stderr
+def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path_factory, tmp_path):
+    out = grid32_copy(tmp_path_factory, tmp_path / "out", "--error-poses-per-m2", "0").parent  # planned once per run
     doc = yaml.safe_load((out / "plan.yaml").read_text())
     lums = doc["luminaires"]
     xyz = np.array([[e["x"], e["y"], e["z"]] for e in lums])
