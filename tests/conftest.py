@@ -8,7 +8,6 @@ import json
 import math
 import os
 import subprocess
-from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass
@@ -53,10 +52,6 @@ def pytest_collection_modifyitems(config, items):
         if full:  # reported as deselected, never as passed
             config.hook.pytest_deselected(items=full)
             items[:] = [item for item in items if not item.get_closest_marker("acceptance")]
-    # Files with the most slow tests first, the cheap ones last: `--dist loadfile` hands out files in this order, so
-    # the workers end on short files and finish together (the order within each file is kept).
-    slow = Counter(item.path for item in items if item.get_closest_marker("slow"))
-    items.sort(key=lambda item: -slow[item.path])
 
 
 @contextmanager
