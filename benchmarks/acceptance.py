@@ -5,9 +5,9 @@ poses per push), issue 13's five dense samples and the 512 drivers flashed over 
 Run from the repository root, with the package installed:  python benchmarks/acceptance.py [pytest options]
 
 The suite (``pytest``) runs a smaller sibling of each with the same assertions (30 poses, 2 photos, a smaller
-site of the same kind, 16,000 poses per push, one sample, grid-32's 32 drivers) and deselects these. This runs the tests marked ``acceptance``
-(``pytest --acceptance -m acceptance``) on every core, prints what each measured and how long it took, and exits
-as pytest does: non-zero when any Done-when no longer holds.
+site of the same kind, 16,000 poses per push, one sample, grid-32's 32 drivers) and deselects these. This runs
+the tests marked ``acceptance`` (``pytest --acceptance -m acceptance``) on every core, prints what each measured
+and how long it took, and exits as pytest does: non-zero when any Done-when no longer holds.
 """
 
 from __future__ import annotations
