@@ -21,7 +21,6 @@ either member's); the pair's hull test uses the two members' own radii.
 from __future__ import annotations
 
 import math
-from itertools import chain
 
 import numpy as np
 from numba import njit
@@ -29,6 +28,7 @@ from scipy.spatial import cKDTree
 
 from planner.verify.envelope import Envelope
 from planner.verify.exclusion import MIN_CELL_M, _near
+from planner.verify.windows import ball_pairs
 
 _NEAR_Q = 8
 """LEDs nearest a cell's centre tested against every member and pair (the hull is widest there)."""
@@ -318,12 +318,10 @@ def _first_rows(xy, radii, centre, live, inside, idx, tree, rho_in, member_reach
     if not len(cells):
         return np.empty((0, 3), np.int64)
     near_q = _near(tree, centre, min(_NEAR_Q, n))
-    members = tree.query_ball_point(centre[cells], member_reach)
-    counts = np.array([len(x) for x in members])
-    if counts.sum() == 0:
+    which, mem = ball_pairs(tree, centre[cells], member_reach)
+    if not len(mem):
         return np.empty((0, 3), np.int64)
-    cell_of = np.repeat(cells, counts)
-    mem = np.fromiter(chain.from_iterable(members), dtype=np.int64, count=int(counts.sum()))
+    cell_of = cells[which]
     q, a = centre[cell_of], xy[mem]
     parts = [near_q[cell_of]] + [_near(tree, 0.5 * (q + a), min(_NEAR_ALONG, n))]
     cand = np.sort(np.hstack(parts), axis=1)

@@ -32,6 +32,7 @@ from planner.verify.envelope import Envelope
 from planner.verify.exclusion import NEAR, pair_reach_m, pairs_kept, windows_kept
 from planner.verify.rivals import counter_clockwise, longest_side, sides, triples_of_pairs
 from planner.verify.window_set import NEIGHBOURS, empty_triangles, may_be_decoded
+from planner.verify.windows import ball_pairs
 
 TILE_LEDS = 64
 """Luminaires per tile, about: enough tiles to share a 512-luminaire site between workers, few enough
@@ -131,10 +132,8 @@ def _window_job(shared: _Shared, job: _Job) -> tuple[np.ndarray, bool]:
 
 def _pairs_from(tree: cKDTree, xy: np.ndarray, rows: np.ndarray, reach_m: float) -> np.ndarray:
     """Pairs ``(i, j)``, ``i`` in ``rows``, ``j > i`` within ``reach_m`` of it (local indices, lexsorted)."""
-    found = tree.query_ball_point(xy[rows], reach_m)
-    counts = np.array([len(f) for f in found], dtype=np.int64)
-    j = np.fromiter((v for f in found for v in f), dtype=np.int64, count=int(counts.sum()))
-    i = np.repeat(rows, counts)
+    which, j = ball_pairs(tree, xy[rows], reach_m)
+    i = rows[which]
     pairs = np.column_stack([i, j])[j > i]
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 

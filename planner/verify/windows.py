@@ -219,16 +219,22 @@ def crossed(triples: np.ndarray, xyz: np.ndarray, radii: np.ndarray) -> np.ndarr
     for i, j in ((0, 1), (1, 2), (2, 0)):
         a, b = xy[triples[:, i]], xy[triples[:, j]]
         half = 0.5 * np.linalg.norm(b - a, axis=1)
-        near = tree.query_ball_point(0.5 * (a + b), half + big)
-        counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
-        t = np.repeat(np.arange(len(triples)), counts)  # (triangle, LED) pairs near this side
-        k = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(counts.sum()))
+        t, k = ball_pairs(tree, 0.5 * (a + b), half + big)  # (triangle, LED) pairs near this side
         other = (k != triples[t, 0]) & (k != triples[t, 1]) & (k != triples[t, 2])
         other &= np.abs(xyz[k, 2] - xyz[triples[t, i], 2]) < SAME_HEIGHT_M  # another LED, at the side's height
         t, k = t[other], k[other]
         gap = segment_distance(a[t], b[t], xy[k][:, None])[:, 0]
         out[t[gap < radii[k]]] = True
     return out
+
+
+def ball_pairs(tree: cKDTree, points: np.ndarray, reach_m) -> tuple[np.ndarray, np.ndarray]:
+    """Every hit of ``tree.query_ball_point(points, reach_m)`` as a pair: the index into ``points`` and the tree's
+    point within ``reach_m`` [m] (scalar or one per point) of it, (M,) each, by query and in the tree's order."""
+    found = tree.query_ball_point(points, reach_m)
+    counts = np.fromiter(map(len, found), dtype=np.int64, count=len(found))
+    return (np.repeat(np.arange(len(found)), counts),
+            np.fromiter(chain.from_iterable(found), dtype=np.int64, count=int(counts.sum())))
 
 
 def segment_distance(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
