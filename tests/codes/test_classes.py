@@ -27,9 +27,9 @@ def _keys(groups, labels):
     return {(g, *row) for g, row in zip(groups.group.tolist(), t.tolist())}, t
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(sites, st.integers(1, 3), st.integers(0, 1000), st.sampled_from([1e-6, TOL / 2, TOL]))
-@pytest.mark.slow
 def test_every_rival_find_rivals_names_is_a_conflict_of_the_groups(xy, k, seed, resolution):
     """Exact lattices (many congruent copies), near-equilateral hexagonal ones (a shape that
     matches itself turned) and jittered sites, with classes of exact shapes or cells of side
