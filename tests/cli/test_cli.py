@@ -60,8 +60,7 @@ def test_outputs_are_byte_identical_across_runs(tmp_path):
     and in a child under hash seed 4."""
     args = [str(LAYOUTS / "dialux-office.dxf"), "--json"]
     assert main([*args, "-o", str(tmp_path / "a")]) == 3  # NOT USABLE with the default lens: written all the same
-    done = subprocess.run([sys.executable, "-m", "planner.cli.plan", *args, "-o", str(tmp_path / "b")], cwd=ROOT,
-                          env=dict(os.environ, PYTHONHASHSEED="4"), capture_output=True, text=True)
+    done = run([*args, "-o", str(tmp_path / "b")], cwd=ROOT, hash_seed="4")
     assert done.returncode == 3 and "NOT USABLE" in done.stderr, done.stderr
     names = sorted(p.name for p in (tmp_path / "a").iterdir())
     assert names == ["coverage.png", "dialux-office-vlp.dxf", "error.png", "firmware", "map.png", "plan.yaml",
@@ -91,8 +90,10 @@ def test_default_outdir_is_next_to_the_layout(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["site-vlp", "site.csv"]
 
 
-def run(args, cwd):
-    return subprocess.run([sys.executable, "-m", "planner.cli.plan", *args], cwd=cwd, capture_output=True, text=True)
+def run(args, cwd, hash_seed: str | None = None):
+    env = None if hash_seed is None else dict(os.environ, PYTHONHASHSEED=hash_seed)
+    return subprocess.run([sys.executable, "-m", "planner.cli.plan", *args], cwd=cwd, env=env, capture_output=True,
+                          text=True)
 
 
 def write(tmp_path, name, text):
@@ -149,10 +150,8 @@ def grid32_seeds(tmp_path_factory) -> list[tuple[subprocess.CompletedProcess, Pa
     (``test_outputs_are_byte_identical_across_runs`` compares those under two hash seeds)."""
     base, runs = tmp_path_factory.mktemp("seeds"), []
     for seed in ("1", "4"):
-        env = dict(os.environ, PYTHONHASHSEED=seed)
-        runs.append((subprocess.run([sys.executable, "-m", "planner.cli.plan", str(LAYOUTS / "grid-32.yaml"), "-o",
-                                     str(base / f"s{seed}"), "--json", "--no-report", "--no-map"], cwd=ROOT, env=env,
-                                    capture_output=True, text=True), base / f"s{seed}"))
+        runs.append((run([str(LAYOUTS / "grid-32.yaml"), "-o", str(base / f"s{seed}"), "--json", "--no-report",
+                          "--no-map"], cwd=ROOT, hash_seed=seed), base / f"s{seed}"))
     return runs
 
 
