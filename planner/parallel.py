@@ -27,7 +27,8 @@ from typing import Any
 from planner.errors import InputError, UsageError
 
 CONNECT_TIMEOUT_S = 10.0
-"""How long ``--scheduler ADDRESS`` waits for the scheduler before giving up [s]."""
+"""How long ``--scheduler ADDRESS`` waits for the scheduler before giving up [s]; an address where
+nothing listens (connection refused) or a host name that does not resolve fails at once."""
 
 
 class Runner:
@@ -87,6 +88,7 @@ class DaskCluster(Runner):
         except ImportError:  # pragma: no cover - a dependency of the package
             raise UsageError("`scheduler` needs dask.distributed: pip install 'vlp-plan[cluster]'") from None
         try:
+            _reachable(address)
             self._client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"`scheduler` {address}: no Dask scheduler answers there ({_first_line(exc)}); "
@@ -104,6 +106,18 @@ class DaskCluster(Runner):
 
     def close(self) -> None:
         self._client.close()
+
+
+def _reachable(address: str) -> None:
+    """Raise OSError at once where a TCP scheduler address refuses or does not resolve; Dask's client
+    would retry until :data:`CONNECT_TIMEOUT_S`, as for a scheduler still starting. Other schemes pass."""
+    import socket
+
+    from distributed.comm import parse_address, parse_host_port
+
+    scheme, location = parse_address(address)
+    if scheme == "tcp":
+        socket.create_connection(parse_host_port(location, 8786), timeout=CONNECT_TIMEOUT_S).close()
 
 
 def runner(workers: int = 1, scheduler: str | None = None) -> Runner:

@@ -30,6 +30,8 @@ from planner.positioning.uncertainty import residual_sigmas
 from planner.positioning.undistort import ideal_ellipses
 
 DOWN = np.array([0.0, 0.0, -1.0])
+FORWARD_STEP = float(np.finfo(float).eps) ** 0.5
+"""Relative step of :func:`refine_gravity`'s forward differences: scipy's default for ``jac="2-point"``."""
 
 
 def levelling(gravity_cam: np.ndarray) -> np.ndarray:
@@ -77,14 +79,27 @@ def refine_gravity(position: np.ndarray, rotation: np.ndarray, xyz: np.ndarray, 
     args = (rotation, xyz, radii, centres, shapes, ideal)
     w = 1.0 if terms is None else 1.0 / residual_sigmas(centres, shapes, radii, ideal, terms)
 
-    def fun(x):
-        rot = rotation @ Rotation.from_rotvec(x[:3]).as_matrix()
-        return np.r_[residuals_batch(x[None], *args)[0] * w, np.cross(g, rot.T @ DOWN) / max(sigma_rad, 1e-9)]
+    def batch(x):  # B poses (B x 6) to B rows of residuals
+        rot = rotation @ Rotation.from_rotvec(x[:, :3]).as_matrix()
+        tilt = np.cross(g, np.einsum("bji,j->bi", rot, DOWN)) / max(sigma_rad, 1e-9)
+        return np.concatenate([residuals_batch(x, *args) * w, tilt], axis=1)
 
+    def jac(x):
+        """scipy's own 2-point rule (step sqrt(eps) max(1, |x|), signed as x), its 6 columns in one batch."""
+        h = FORWARD_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        poses = np.tile(x, (len(x) + 1, 1))
+        poses[1:][np.diag_indices(len(x))] += h
+        r = batch(poses)
+        return ((r[1:] - r[0]) / ((x + h) - x)[:, None]).T
+
+    def fun(x):
+        return batch(x[None])[0]
+
+    start = np.r_[0.0, 0.0, 0.0, position]
     if terms is None:
-        fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], method="lm", x_scale="jac")
+        fit = least_squares(fun, start, jac=jac, method="lm", x_scale="jac")
     else:
-        fit = least_squares(fun, np.r_[0.0, 0.0, 0.0, position], x_scale="jac", loss="soft_l1", f_scale=ROBUST_SIGMAS)
+        fit = least_squares(fun, start, jac=jac, x_scale="jac", loss="soft_l1", f_scale=ROBUST_SIGMAS)
     rot = rotation @ Rotation.from_rotvec(fit.x[:3]).as_matrix()
     return fit.x[3:], rot, rms(fit.fun[:-3] / w)
 

@@ -39,6 +39,43 @@ def test_two_points_and_exact_gravity_give_the_exact_pose():
         assert np.linalg.norm(got - position) < 1e-9 and np.abs(rot - rotation).max() < 1e-9
 
 
+@pytest.mark.parametrize("lens", ["pinhole", "fisheye"])
+def test_the_batched_jacobian_fits_exactly_as_scipys_own_finite_differences(lens, monkeypatch):
+    """refine_gravity evaluates scipy's 2-point rule in one batch: the fits are the same to the last bit."""
+    from scipy import optimize
+
+    import planner.positioning.gravity as gravity
+    from planner.positioning.error_terms import DEFAULT_TERMS
+
+    cam = Camera.from_fov(math.radians(80 if lens == "pinhole" else 110), lens=lens,
+                          distortion=() if lens == "pinhole" else (0.05, -0.01, 0.002, 0.0))
+    own = optimize.least_squares
+
+    def scipys(fun, x0, jac, **kw):  # the same fit with scipy differencing fun itself
+        assert callable(jac)
+        return own(fun, x0, **kw)
+
+    rng = np.random.default_rng(2)
+    fits = 0
+    for position, rotation in _poses(rng, 12):
+        seen = observe(position, rotation, XYZ, RADII, cam, rng, 0.5)
+        if len(seen.index) < 2:
+            continue
+        k = seen.index
+        g = _noisy(rotation.T @ np.array([0, 0, -1.0]), math.radians(1.0), rng)
+        rays = cam.rays(np.array([e.centre for e in seen.ellipses[:2]]))
+        start = two_point_pose(XYZ[k[:2]], rays, g)
+        for terms in (None, DEFAULT_TERMS):
+            args = (*start, XYZ[k], RADII[k], seen.ellipses, g, math.radians(1.0), cam, terms)
+            batched = gravity.refine_gravity(*args)
+            with monkeypatch.context() as m:
+                m.setattr(optimize, "least_squares", scipys)
+                reference = gravity.refine_gravity(*args)
+            assert all(np.array_equal(a, b) for a, b in zip(batched, reference))
+            fits += 1
+    assert fits >= 16
+
+
 def test_gravity_fix_with_one_degree_accelerometer_noise_is_within_centimetres():
     cam = Camera.from_fov(math.radians(80))
     rng = np.random.default_rng(1)

@@ -92,6 +92,7 @@ def test_unreachable_scheduler_is_one_line_exit_1_nothing_written(tmp_path):
     done = _vlp_plan(str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9")
     assert done.returncode == 1, done.stderr
     assert done.stderr.count("\n") == 1 and "--scheduler tcp://127.0.0.1:9" in done.stderr, done.stderr
+    assert "refused" in done.stderr  # said at once, not after Dask's connect timeout
     assert "Traceback" not in done.stderr and not out.exists() and list(tmp_path.iterdir()) == []
 
 
