@@ -18,9 +18,10 @@ from itertools import chain
 
 import numpy as np
 from matplotlib.path import Path as PolygonPath
+from numba import njit
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
-from planner.camera.model import Camera, Poses, project_discs
+from planner.camera.model import Camera, Poses
 from planner.defaults import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 from planner.layout.model import area_m2
 
@@ -162,7 +163,8 @@ def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
     ascending (-1 where fewer are seen), and how many LEDs are wholly seen (P,) among those examined.
 
     Through a distorting lens "wholly seen" is inside ``camera.view_px`` and "nearest" is by the ray
-    angle from the optical axis (ideal pixels from :func:`planner.camera.model.project_discs`; docs/verification.md).
+    angle from the optical axis (ideal pixels, as :func:`planner.camera.model.project_discs` gives them;
+    docs/verification.md). The image bounds and the choice are compiled (:func:`_nearest_inside`).
     """
     n = len(xyz)
     k = min(CANDIDATES, n)
@@ -177,15 +179,75 @@ def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
         aim = part.position[:, :2] + reach[:, None] * axis[:, :2]
         _, cand = tree.query(aim, k=k)
         cand = cand.reshape(len(part), k)
-        img = project_discs(part, xyz[cand], radii[cand], camera)
-        dist2 = (img["u"] - camera.cx_px) ** 2 + (img["v"] - camera.cy_px) ** 2
-        dist2 = np.where(img["inside"], dist2, np.inf)
-        order = np.argsort(dist2, axis=1, kind="stable")[:, :count]
-        nearest = np.take_along_axis(cand, order, axis=1)
-        ok = np.isfinite(np.take_along_axis(dist2, order, axis=1)).all(axis=1)
-        seen[start:start + len(part)] = img["inside"].sum(axis=1)
-        chosen[start:start + len(part)][ok] = np.sort(nearest[ok], axis=1)
+        rot = part.rotation
+        kr = camera.intrinsics @ np.swapaxes(rot, 1, 2)  # K R^T, as planner.camera.model.disc_terms has it
+        _nearest_inside(kr, np.ascontiguousarray(rot[:, :, 2]), np.hypot(rot[:, 0, 2], rot[:, 1, 2]), part.position,
+                        xyz, radii, cand, np.array(camera.view_px), camera.cx_px, camera.cy_px,
+                        chosen[start:start + len(part)], seen[start:start + len(part)])
     return chosen, seen
+
+
+@njit(cache=True)
+def _dot(row, x, y, z):
+    """``row · (x, y, z)``, summed from zero in order as ``numpy.einsum`` sums."""
+    acc = 0.0
+    acc += row[0] * x
+    acc += row[1] * y
+    acc += row[2] * z
+    return acc
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest_inside(kr, axis, tilt, position, xyz, radii, cand, view, cx, cy, chosen, seen):
+    """:func:`nearest_seen` for one batch of P poses, into ``chosen`` (P, count) and ``seen`` (P,).
+
+    Of the candidates ``cand`` (P, K), the discs wholly in front of the camera and imaged wholly inside ``view``
+    (u_lo, u_hi, v_lo, v_hi) [px] are seen; the ``count`` whose centres image nearest (``cx``, ``cy``) [px], ties
+    in candidate order, are chosen, as luminaire indices ascending. ``kr`` is ``K R^T`` (P, 3, 3), ``axis`` the
+    optical axis (P, 3) and ``tilt`` its horizontal length (P,). The arithmetic is
+    :func:`planner.camera.model.project_discs_at`'s, term by term and in its order (the same floats)."""
+    count = chosen.shape[1]
+    best_d = np.empty(count)
+    best_k = np.empty(count, np.int64)
+    for p in range(cand.shape[0]):
+        n_in = 0
+        n_best = 0
+        for k in range(cand.shape[1]):
+            c = cand[p, k]
+            d0, d1, d2 = xyz[c, 0] - position[p, 0], xyz[c, 1] - position[p, 1], xyz[c, 2] - position[p, 2]
+            if not _dot(axis[p], d0, d1, d2) - radii[c] * tilt[p] > 1e-9:
+                continue  # some of the rim is behind the camera
+            h = (_dot(kr[p, 0], d0, d1, d2), _dot(kr[p, 1], d0, d1, d2), _dot(kr[p, 2], d0, d1, d2))  # H's third column
+            r2 = radii[c] * radii[c]
+            c22 = r2 * (kr[p, 2, 0] * kr[p, 2, 0] + kr[p, 2, 1] * kr[p, 2, 1]) - h[2] * h[2]
+            inside = True
+            for a in range(2):  # the image's extent along u, then v: tangents solve a quadratic
+                caa = r2 * (kr[p, a, 0] * kr[p, a, 0] + kr[p, a, 1] * kr[p, a, 1]) - h[a] * h[a]
+                ca2 = r2 * (kr[p, a, 0] * kr[p, 2, 0] + kr[p, a, 1] * kr[p, 2, 1]) - h[a] * h[2]
+                t = ca2 * ca2 - caa * c22
+                if not (t >= 0.0 or t != t):  # np.maximum(t, 0.0)
+                    t = 0.0
+                disc = np.sqrt(t)
+                lo, hi = (ca2 - disc) / c22, (ca2 + disc) / c22
+                if lo != lo or hi != hi or not (min(lo, hi) >= view[2 * a] and max(lo, hi) <= view[2 * a + 1]):
+                    inside = False
+                    break
+            if not inside:
+                continue
+            n_in += 1
+            du, dv = h[0] / h[2] - cx, h[1] / h[2] - cy
+            d = du * du + dv * dv
+            if not np.isfinite(d) or (n_best == count and not d < best_d[count - 1]):
+                continue  # a stable sort keeps the earlier of equals
+            j = min(n_best, count - 1)
+            while j > 0 and d < best_d[j - 1]:
+                best_d[j], best_k[j] = best_d[j - 1], best_k[j - 1]
+                j -= 1
+            best_d[j], best_k[j] = d, k
+            n_best = min(n_best + 1, count)
+        seen[p] = n_in
+        if n_best == count:
+            chosen[p] = np.sort(cand[p][best_k])
 
 
 def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
