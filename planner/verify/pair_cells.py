@@ -309,6 +309,30 @@ def _forced_ok(rows: np.ndarray, inside: np.ndarray, idx: np.ndarray) -> np.ndar
     return ~(ins & ~member).any(axis=1)
 
 
+@njit(cache=True)
+def _blockers(xy, centre, cell_of, mem, near_q, near_mid, rho_in, m, small):
+    """For each (cell, member) row: how many small LEDs among the cell's and the row's nearest (``near_q``,
+    ``near_mid``) lie deep in ``conv({a} ∪ D(q, rho_in))`` (:func:`_cone`), and the one if there is one (else -1)."""
+    nblock = np.zeros(len(mem), dtype=np.int64)
+    blocker = np.full(len(mem), -1, dtype=np.int64)
+    for r in range(len(mem)):
+        a, cell = mem[r], cell_of[r]
+        ax, ay, qx, qy = xy[a, 0], xy[a, 1], centre[cell, 0], centre[cell, 1]
+        for t in range(near_q.shape[1] + near_mid.shape[1]):
+            c = near_q[cell, t] if t < near_q.shape[1] else near_mid[r, t - near_q.shape[1]]
+            seen = False  # each LED counted once, whichever list names it
+            for u in range(t):
+                if (near_q[cell, u] if u < near_q.shape[1] else near_mid[r, u - near_q.shape[1]]) == c:
+                    seen = True
+            if seen or c == a or not small[c] or not _cone(ax, ay, qx, qy, rho_in, xy[c, 0], xy[c, 1], m):
+                continue
+            nblock[r] += 1
+            blocker[r] = c if blocker[r] < 0 else min(blocker[r], c)
+        if nblock[r] != 1:
+            blocker[r] = -1
+    return nblock, blocker
+
+
 def _first_rows(xy, radii, centre, live, inside, idx, tree, rho_in, member_reach, m, pair_reach, kept) -> np.ndarray:
     """(cell, a, b) rows of the first cells: members within reach with at most one blocker, paired
     (with the cell's forced LEDs, where it has any)."""
@@ -322,15 +346,8 @@ def _first_rows(xy, radii, centre, live, inside, idx, tree, rho_in, member_reach
     if not len(mem):
         return np.empty((0, 3), np.int64)
     cell_of = cells[which]
-    q, a = centre[cell_of], xy[mem]
-    parts = [near_q[cell_of]] + [_near(tree, 0.5 * (q + a), min(_NEAR_ALONG, n))]
-    cand = np.sort(np.hstack(parts), axis=1)
-    dup = np.zeros(cand.shape, dtype=bool)
-    dup[:, 1:] = cand[:, 1:] == cand[:, :-1]
-    deep = _cones(a, q, np.full(len(mem), rho_in), xy, cand, m)
-    deep &= ~dup & (cand != mem[:, None]) & small[cand]
-    nblock = deep.sum(axis=1)
-    blocker = np.where(nblock == 1, cand[np.arange(len(mem)), np.argmax(deep, axis=1)], -1)
+    near_mid = _near(tree, 0.5 * (centre[cell_of] + xy[mem]), min(_NEAR_ALONG, n))
+    nblock, blocker = _blockers(xy, centre, cell_of, mem, near_q, near_mid, rho_in, m, small)
     ok = nblock <= 1
     cell_of, mem, blocker = cell_of[ok], mem[ok], blocker[ok]  # sorted by cell already
     starts = np.flatnonzero(np.r_[True, cell_of[1:] != cell_of[:-1]])

@@ -37,6 +37,34 @@ def test_cone_test_only_says_deep_where_the_exact_hull_depth_exceeds_the_margin(
     assert got[exact > 3 * M].mean() > 0.6
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_a_members_blockers_are_the_small_leds_deep_in_its_cone_among_those_near_it(seed):
+    """The first cells' blocker count (compiled) against the cone test on each row's candidates, written in numpy:
+    the LEDs nearest the cell and nearest the member's midpoint, each once, less the member and larger discs."""
+    from scipy.spatial import cKDTree
+
+    from planner.verify.exclusion import _near
+    from planner.verify.windows import ball_pairs
+
+    rng = np.random.default_rng(seed)
+    n = 100
+    xy = grid_xy(10, 10, 0.6, 0.6) if seed % 2 else rng.uniform(0, 6, (n, 2))  # lattices: many equal distances
+    radii = np.where(rng.uniform(size=n) < 0.3, 0.1, 0.05) if seed > 1 else np.full(n, 0.1)
+    tree, centre = cKDTree(xy), rng.uniform(-1, 7, (2000, 2))
+    cell_of, mem = ball_pairs(tree, centre, 1.5)
+    near_q, near_mid = _near(tree, centre, pc._NEAR_Q), _near(tree, 0.5 * (centre[cell_of] + xy[mem]), pc._NEAR_ALONG)
+    small = radii <= radii.min() + 1e-12
+    nblock, blocker = pc._blockers(xy, centre, cell_of, mem, near_q, near_mid, 0.9, M, small)
+    cand = np.sort(np.hstack([near_q[cell_of], near_mid]), axis=1)
+    once = np.ones(cand.shape, dtype=bool)
+    once[:, 1:] = cand[:, 1:] != cand[:, :-1]
+    deep = pc._in_cone(xy[mem], centre[cell_of], np.full(len(mem), 0.9), xy[cand], M)
+    deep &= once & (cand != mem[:, None]) & small[cand]
+    assert np.array_equal(nblock, deep.sum(axis=1))
+    assert np.array_equal(blocker, np.where(nblock == 1, cand[np.arange(len(mem)), np.argmax(deep, axis=1)], -1))
+    assert (nblock == 1).sum() > 100 and (nblock > 1).sum() > 100  # both kinds of row are met
+
+
 def test_pair_hull_test_only_excludes_with_a_disc_deep_in_the_exact_hull():
     rng = np.random.default_rng(4)
     a, b, q, rho, x = _random_hull_cases(rng)
