@@ -180,7 +180,7 @@ def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
         _, cand = tree.query(aim, k=k)
         cand = cand.reshape(len(part), k)
         rot = part.rotation
-        kr = camera.intrinsics @ np.swapaxes(rot, 1, 2)  # K R^T, as planner.camera.model.disc_terms has it
+        kr = camera.intrinsics @ np.swapaxes(rot, 1, 2)  # K R^T, as planner.camera.model._disc_terms has it
         _nearest_inside(kr, np.ascontiguousarray(rot[:, :, 2]), np.hypot(rot[:, 0, 2], rot[:, 1, 2]), part.position,
                         xyz, radii, cand, np.array(camera.view_px), camera.cx_px, camera.cy_px,
                         chosen[start:start + len(part)], seen[start:start + len(part)])
