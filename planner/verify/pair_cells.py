@@ -45,7 +45,12 @@ _TOP_BATCH = 1000
 
 @njit(cache=True)
 def _cone(ax, ay, qx, qy, rho, px, py, m):
-    """Whether ``p`` lies deeper than ``m`` in ``conv({a} ∪ D(q, rho))`` (:func:`_in_cone`, one point)."""
+    """Whether ``p`` lies deeper than ``m`` in ``conv({a} ∪ D(q, rho))``.
+
+    Sufficient test: ``p`` in ``conv({a'} ∪ D(q, rho - m))``, ``a'`` the point on ``a q`` whose disc of
+    radius ``m`` touches both tangents (``m |a - q| / rho`` from ``a``); that set's ``m``-neighbourhood
+    lies in the cone, so each of its points is deeper than ``m``.
+    """
     inner = rho - m
     if not (inner > 0 and rho > 0):
         return False
@@ -83,16 +88,6 @@ def _depth(ax, ay, bx, by, cx, cy, px, py):
 
 
 @njit(cache=True)
-def _cones(a, q, rho, xy, cand, m):
-    out = np.zeros(cand.shape, dtype=np.bool_)
-    for r in range(cand.shape[0]):
-        for k in range(cand.shape[1]):
-            c = cand[r, k]
-            out[r, k] = _cone(a[r, 0], a[r, 1], q[r, 0], q[r, 1], rho[r], xy[c, 0], xy[c, 1], m)
-    return out
-
-
-@njit(cache=True)
 def _excluded(xy, radii, ai, bi, q, rho, cand, m):
     out = np.zeros(len(ai), dtype=np.bool_)
     for r in range(len(ai)):
@@ -111,23 +106,12 @@ def _excluded(xy, radii, ai, bi, q, rho, cand, m):
     return out
 
 
-def _in_cone(a: np.ndarray, q: np.ndarray, rho: np.ndarray, x: np.ndarray, m: float) -> np.ndarray:
-    """Whether ``x`` (N, K, 2) lies deeper than ``m`` in ``conv({a} ∪ D(q, rho))`` (a, q (N, 2), rho (N,)).
-
-    Sufficient test: ``x`` in ``conv({a'} ∪ D(q, rho - m))``, ``a'`` the point on ``a q`` whose disc of
-    radius ``m`` touches both tangents (``m |a - q| / rho`` from ``a``); that set's ``m``-neighbourhood
-    lies in the cone, so each of its points is deeper than ``m``.
-    """
-    n, k = x.shape[:2]
-    return _cones(a, q, rho, x.reshape(-1, 2), np.arange(n * k).reshape(n, k), m)
-
-
 def _pair_excluded(xy, radii, a_idx, b_idx, centre, cell, rho, tree, m) -> np.ndarray:
     """Whether a disc no larger than both members lies deeper than ``m`` in ``conv({a, b} ∪ D(q, rho))`` (R,),
     ``q = centre[cell]`` (the LEDs nearest each cell's centre are found once for all its rows).
 
     Tested on two parts of that hull: the cones ``conv({a} ∪ D(q, rho))``, ``conv({b} ∪ D(q, rho))``
-    (:func:`_in_cone`) and the triangle ``a b q`` (depth beyond ``m`` from each side; it lies in every
+    (:func:`_cone`) and the triangle ``a b q`` (depth beyond ``m`` from each side; it lies in every
     ``q``'s hull of the cell, so it is tested wherever ``rho >= 0``)."""
     out = np.zeros(len(a_idx), dtype=bool)
     n = len(xy)
@@ -160,14 +144,6 @@ def _both_in_view(xy, a_idx, b_idx, q, g, env) -> np.ndarray:
     cos = np.einsum("nd,nd->n", pa, pb) / np.maximum(ra * rb, 1e-12)
     apart = np.arccos(np.clip(cos, -1.0, 1.0))
     return ~(fa & fb & (apart > ba + bb + 1e-12))
-
-
-def _triangle_depth(a: np.ndarray, b: np.ndarray, c: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Depth of ``x`` (N, K, 2) in the triangles ``a b c`` (N, 2 each): least distance inside its sides, < 0 outside."""
-    out = np.empty(x.shape[:2])
-    for r, k in np.ndindex(*x.shape[:2]):
-        out[r, k] = _depth(a[r, 0], a[r, 1], b[r, 0], b[r, 1], c[r, 0], c[r, 1], x[r, k, 0], x[r, k, 1])
-    return out
 
 
 def _cells(env: Envelope, xy: np.ndarray, area: np.ndarray | None, spread: float, half: float) -> np.ndarray:
@@ -315,19 +291,21 @@ def _blockers(xy, centre, cell_of, mem, near_q, near_mid, rho_in, m, small):
     ``near_mid``) lie deep in ``conv({a} ∪ D(q, rho_in))`` (:func:`_cone`), and the one if there is one (else -1)."""
     nblock = np.zeros(len(mem), dtype=np.int64)
     blocker = np.full(len(mem), -1, dtype=np.int64)
+    row = np.empty(near_q.shape[1] + near_mid.shape[1], dtype=np.int64)
     for r in range(len(mem)):
         a, cell = mem[r], cell_of[r]
+        row[:near_q.shape[1]], row[near_q.shape[1]:] = near_q[cell], near_mid[r]
         ax, ay, qx, qy = xy[a, 0], xy[a, 1], centre[cell, 0], centre[cell, 1]
-        for t in range(near_q.shape[1] + near_mid.shape[1]):
-            c = near_q[cell, t] if t < near_q.shape[1] else near_mid[r, t - near_q.shape[1]]
-            seen = False  # each LED counted once, whichever list names it
+        for t in range(len(row)):
+            c = row[t]
+            again = False  # each LED once, whichever list names it
             for u in range(t):
-                if (near_q[cell, u] if u < near_q.shape[1] else near_mid[r, u - near_q.shape[1]]) == c:
-                    seen = True
-            if seen or c == a or not small[c] or not _cone(ax, ay, qx, qy, rho_in, xy[c, 0], xy[c, 1], m):
+                again |= row[u] == c
+            if again or c == a or not small[c]:
                 continue
-            nblock[r] += 1
-            blocker[r] = c if blocker[r] < 0 else min(blocker[r], c)
+            if _cone(ax, ay, qx, qy, rho_in, xy[c, 0], xy[c, 1], m):
+                nblock[r] += 1
+                blocker[r] = c if blocker[r] < 0 else min(blocker[r], c)
         if nblock[r] != 1:
             blocker[r] = -1
     return nblock, blocker

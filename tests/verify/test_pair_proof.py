@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from numba import njit
 
 from conftest import ROOT, exact_nearest, grid_xy
 from planner.camera.model import Camera
@@ -14,6 +15,24 @@ from planner.verify.pair_proof import pair_envelope, possible_window_pairs, prov
 from planner.verify.windows import sample_poses, working_area
 
 M = 0.06 + 1e-9
+
+
+@njit
+def _in_cone(a, q, rho, x, m):
+    """pc._cone over points ``x`` (N, K, 2), each row's cone ``conv({a} ∪ D(q, rho))`` (a, q (N, 2), rho (N,))."""
+    out = np.zeros(x.shape[:2], dtype=np.bool_)
+    for r in range(x.shape[0]):
+        for k in range(x.shape[1]):
+            out[r, k] = pc._cone(a[r, 0], a[r, 1], q[r, 0], q[r, 1], rho[r], x[r, k, 0], x[r, k, 1], m)
+    return out
+
+
+def _triangle_depth(a, b, c, x):
+    """pc._depth of points ``x`` (N, K, 2) in the triangles ``a b c`` (N, 2 each)."""
+    out = np.empty(x.shape[:2])
+    for r, k in np.ndindex(*x.shape[:2]):
+        out[r, k] = pc._depth(a[r, 0], a[r, 1], b[r, 0], b[r, 1], c[r, 0], c[r, 1], x[r, k, 0], x[r, k, 1])
+    return out
 
 
 def _random_hull_cases(rng, k=400):
@@ -28,7 +47,7 @@ def _random_hull_cases(rng, k=400):
 def test_cone_test_only_says_deep_where_the_exact_hull_depth_exceeds_the_margin():
     rng = np.random.default_rng(3)
     a, _, q, rho, x = _random_hull_cases(rng)
-    got = pc._in_cone(a, q, rho, x, M)
+    got = _in_cone(a, q, rho, x, M)
     exact = _hull_depth(np.stack([a, a, a], axis=1), q, rho, x)
     assert got.sum() > 300  # the test does say deep, often
     assert not (got & (exact <= M)).any()
@@ -58,7 +77,7 @@ def test_a_members_blockers_are_the_small_leds_deep_in_its_cone_among_those_near
     cand = np.sort(np.hstack([near_q[cell_of], near_mid]), axis=1)
     once = np.ones(cand.shape, dtype=bool)
     once[:, 1:] = cand[:, 1:] != cand[:, :-1]
-    deep = pc._in_cone(xy[mem], centre[cell_of], np.full(len(mem), 0.9), xy[cand], M)
+    deep = _in_cone(xy[mem], centre[cell_of], np.full(len(mem), 0.9), xy[cand], M)
     deep &= once & (cand != mem[:, None]) & small[cand]
     assert np.array_equal(nblock, deep.sum(axis=1))
     assert np.array_equal(blocker, np.where(nblock == 1, cand[np.arange(len(mem)), np.argmax(deep, axis=1)], -1))
@@ -70,7 +89,7 @@ def test_pair_hull_test_only_excludes_with_a_disc_deep_in_the_exact_hull():
     a, b, q, rho, x = _random_hull_cases(rng)
     tri = np.stack([a, b, b], axis=1)
     exact = _hull_depth(tri, q, rho, x)
-    parts = pc._in_cone(a, q, rho, x, M) | pc._in_cone(b, q, rho, x, M) | (pc._triangle_depth(a, b, q, x) > M)
+    parts = _in_cone(a, q, rho, x, M) | _in_cone(b, q, rho, x, M) | (_triangle_depth(a, b, q, x) > M)
     assert parts.sum() > 500
     assert (exact[parts] > M).all()
 
