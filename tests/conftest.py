@@ -170,17 +170,27 @@ def wide_plan_dir(tmp_path_factory) -> Path:
     return _shared_plan(tmp_path_factory, "grid-32.yaml", None, "--camera", "wide", stem="grid-32-wide")
 
 
+def nearest_by_the_model(poses, cand, xyz, radii, cam, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Of the candidate LEDs ``cand`` (P, K) of each pose, the ``count`` wholly seen nearest the image centre by
+    the camera model's numpy images (``project_discs``), ties in candidate order, sorted (P, count; -1 where fewer
+    are seen), and how many are wholly seen (P,)."""
+    from planner.camera.model import project_discs
+
+    img = project_discs(poses, xyz[cand], radii[cand], cam)
+    d2 = np.where(img["inside"], (img["u"] - cam.cx_px) ** 2 + (img["v"] - cam.cy_px) ** 2, np.inf)
+    order = np.argsort(d2, axis=1, kind="stable")[:, :count]
+    ok = np.isfinite(np.take_along_axis(d2, order, axis=1)).all(axis=1)
+    chosen = np.full((len(poses), count), -1)
+    chosen[ok] = np.sort(np.take_along_axis(cand, order, axis=1)[ok], axis=1)
+    return chosen, img["inside"].sum(axis=1)
+
+
 def exact_nearest(xyz, radii, cam, poses, count: int) -> np.ndarray:
     """The ``count`` wholly seen LEDs nearest the image centre with every LED projected (no candidate
     shortcut), sorted, for the poses that see that many: the paper's window (3), the two-LED window (2)."""
-    from planner.camera.model import project_discs
-
-    n = len(xyz)
-    img = project_discs(poses, np.broadcast_to(xyz, (len(poses), n, 3)), np.broadcast_to(radii, (len(poses), n)), cam)
-    d2 = np.where(img["inside"], (img["u"] - cam.cx_px) ** 2 + (img["v"] - cam.cy_px) ** 2, np.inf)
-    order = np.argsort(d2, axis=1)[:, :count]
-    ok = np.isfinite(np.take_along_axis(d2, order, axis=1)).all(axis=1)
-    return np.sort(order[ok], axis=1)
+    every = np.broadcast_to(np.arange(len(xyz)), (len(poses), len(xyz)))
+    chosen, _ = nearest_by_the_model(poses, every, xyz, radii, cam, count)
+    return chosen[chosen[:, 0] >= 0]
 
 
 def accepted(windows: np.ndarray, drawn: np.ndarray, installed: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, grid32_copy, grid_xy
+from conftest import ROOT, grid32_copy, grid_xy, nearest_by_the_model
 from planner.camera.model import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.schemes import assign_window
 from planner.codes.window import window_keys
@@ -71,13 +71,7 @@ def _nearest_seen_by_the_camera_model(poses, xyz, radii, cam, count):
     cand = cKDTree(xyz[:, :2]).query(poses.position[:, :2] + ((np.median(xyz[:, 2]) - poses.position[:, 2])
                                      / np.maximum(poses.rotation[:, 2, 2], 1e-6))[:, None] * poses.rotation[:, :2, 2],
                                      k=min(CANDIDATES, len(xyz)))[1]
-    img = project_discs(poses, xyz[cand], radii[cand], cam)
-    dist2 = np.where(img["inside"], (img["u"] - cam.cx_px) ** 2 + (img["v"] - cam.cy_px) ** 2, np.inf)
-    order = np.argsort(dist2, axis=1, kind="stable")[:, :count]
-    ok = np.isfinite(np.take_along_axis(dist2, order, axis=1)).all(axis=1)
-    chosen = np.full((len(poses), count), -1)
-    chosen[ok] = np.sort(np.take_along_axis(cand, order, axis=1)[ok], axis=1)
-    return chosen, img["inside"].sum(axis=1)
+    return nearest_by_the_model(poses, cand, xyz, radii, cam, count)
 
 
 @pytest.mark.parametrize("seed", range(6))
