@@ -8,6 +8,7 @@ import json
 import math
 import os
 import subprocess
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass
@@ -17,6 +18,9 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+"""Where the installed console scripts are: run them by path, never ``python -m planner...`` from the checkout
+(its working directory would put the source tree ahead of the installed package)."""
 
 SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
                  "test_efficiency.py:small_json", "test_accuracy.py:table3"}

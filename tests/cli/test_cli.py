@@ -3,13 +3,12 @@
 import json
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
 
-from conftest import ROOT, grid32_copy
+from conftest import BIN, ROOT, grid32_copy
 from planner.cli.plan import console_main, main
 
 LAYOUTS = ROOT / "layouts"
@@ -92,8 +91,7 @@ def test_default_outdir_is_next_to_the_layout(tmp_path):
 
 def run(args, cwd, hash_seed: str | None = None):
     env = None if hash_seed is None else dict(os.environ, PYTHONHASHSEED=hash_seed)
-    return subprocess.run([sys.executable, "-m", "planner.cli.plan", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True)
+    return subprocess.run([str(BIN / "vlp-plan"), *args], cwd=cwd, env=env, capture_output=True, text=True)
 
 
 def write(tmp_path, name, text):
@@ -225,7 +223,7 @@ def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_
 
 def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path, tmp_path_factory):
     plan = grid32_copy(tmp_path_factory, tmp_path / "o", "--error-poses-per-m2", "0")  # any plan: the map path is wrong
-    result = subprocess.run([sys.executable, "-m", "planner.cli.verify", str(plan),
+    result = subprocess.run([str(BIN / "vlp-verify"), str(plan),
                              "--map", str(tmp_path / "no" / "such" / "map.png")], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 2 and "does not exist" in result.stderr and "Traceback" not in result.stderr
 

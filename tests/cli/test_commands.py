@@ -31,6 +31,16 @@ def test_the_suite_tests_the_installed_package_and_its_eleven_scripts():
     assert scripts == {Path(sys.executable).parent}, f"the scripts on PATH are not this environment's: {scripts}"
 
 
+def test_no_test_runs_a_command_from_the_source_tree():
+    """``python -m planner.cli...`` run from the checkout imports its source tree, not the installed package (and
+    compiles that tree's numba kernels a second time): the tests run the installed console scripts by path."""
+    module = "planner"  # written apart, so that this line is not found
+    found = [f"{path.relative_to(ROOT)}:{n}" for path in sorted((ROOT / "tests").rglob("*.py"))
+             for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+             if f'"-m", "{module}' in line or f"'-m', '{module}" in line]
+    assert found == []
+
+
 def _best_of(argv: list[str], runs: int = 3) -> tuple[float, subprocess.CompletedProcess]:
     best, done = float("inf"), None
     for _ in range(runs):

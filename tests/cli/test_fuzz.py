@@ -14,6 +14,7 @@ deeper with random seeds (outside CI).
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import os
 import time
@@ -206,7 +207,10 @@ def test_observation_json_bytes(data):
         _one_line(lambda: read_snapshot(path), path)
 
 
+@functools.cache
 def _plan_doc() -> dict:
+    """A plan.yaml to mutate: planned when the test first draws, not at collection (where every xdist worker
+    would plan it, compiling the numba kernels side by side in a fresh install)."""
     with TemporaryDirectory() as folder:
         layout = _write(folder, "site.yaml", yaml.safe_dump(LAYOUT))
         assert plan.main([str(layout), "-o", str(Path(folder) / "out"), "--no-report", "--no-map", "--no-firmware",
@@ -214,11 +218,8 @@ def _plan_doc() -> dict:
         return yaml.safe_load((Path(folder) / "out" / "plan.yaml").read_text())
 
 
-PLAN = _plan_doc()
-
-
 @settings(FUZZ, max_examples=DEEP or 100)
-@given(mutated(PLAN))
+@given(st.deferred(lambda: mutated(_plan_doc())))
 def test_plan_yaml_fields(doc):
     with TemporaryDirectory() as folder:
         path = _write(folder, "plan.yaml", yaml.safe_dump(doc, allow_unicode=True))

@@ -2,7 +2,6 @@
 import itertools
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -10,7 +9,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, grid32_copy, grid_xy, nearest_by_the_model
+from conftest import BIN, ROOT, grid32_copy, grid_xy, nearest_by_the_model
 from planner.camera.model import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.schemes import assign_window
 from planner.codes.window import window_keys
@@ -167,13 +166,13 @@ def ccw(t, xy) -> bool:
 
 
 def plan_cli(args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", *args], cwd=cwd, capture_output=True, text=True)
+    return subprocess.run([str(BIN / args[0]), *args[1:]], cwd=cwd, capture_output=True, text=True)
 
 
 @pytest.mark.slow
 def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_path):
     out = grid32_copy(tmp_path_factory, tmp_path / "out", "--error-poses-per-m2", "0").parent  # planned once per run
-    ok = plan_cli(["planner.cli.verify", str(out / "plan.yaml")])
+    ok = plan_cli(["vlp-verify", str(out / "plan.yaml")])
     assert ok.returncode == 0 and "0 ambiguous" in ok.stdout
     doc = yaml.safe_load((out / "plan.yaml").read_text())
     assert doc["scheme"] == "window"  # the default scheme chooses the window code on grid-32
@@ -198,7 +197,7 @@ def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_
     lums[i]["id"], lums[j]["id"] = lums[j]["id"], lums[i]["id"]
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(doc, sort_keys=False))
-    result = plan_cli(["planner.cli.verify", str(bad), "--map", str(tmp_path / "cov.png")])
+    result = plan_cli(["vlp-verify", str(bad), "--map", str(tmp_path / "cov.png")])
     assert result.returncode == 3, result.stdout + result.stderr
     named = [line for line in result.stdout.splitlines() if "same key:" in line]
     assert named and any(lums[i]["name"] in line or lums[j]["name"] in line for line in named)
@@ -208,7 +207,7 @@ def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_
 def test_vlp_verify_bad_plan_file(tmp_path):
     bad = tmp_path / "plan.yaml"
     bad.write_text("format: something-else\n")
-    result = plan_cli(["planner.cli.verify", str(bad)])
+    result = plan_cli(["vlp-verify", str(bad)])
     assert result.returncode == 1 and "not a vlp-plan/1 plan" in result.stderr
 
 
