@@ -121,7 +121,7 @@ def _rekey(i, T, S, nwin, lab, w, strides, lum_start, lum_triples, wkeys, whead,
            nxt, prv, slot):
     """Luminaire ``i`` has a new label: move the entries that hold it in a keyed place."""
     for a in range(lum_start[i], lum_start[i + 1]):
-        u = lum_triples[a]
+        u = np.int64(lum_triples[a])  # int64 everywhere: each kernel compiles for one signature
         for f in range(3):
             if T[u, f] != i:
                 e, key = 3 * u + f, _key(T, S, u, f, lab, w, strides)
@@ -167,7 +167,7 @@ def _remote(T, S, nwin, q, j, lab, tol, w, strides, wkeys, whead, wmask, mkeys, 
     ``j`` >= 0: ``out[k]`` counts the pairs that read alike when ``q``'s place ``j`` has label k (the other
     places as labelled). ``j`` < 0: the triples that read like ``q`` under ``lab`` fill ``partners`` (as
     many as fit), ``out[0]`` counts them and ``out[1]`` those after ``q``. Returns how many partners."""
-    n = 0
+    n = np.int64(0)  # not the literal 0: _visit would compile once more for it
     for r in range(3):  # q turned by r: its place p is T[q, (p + r) % 3], its side p is S[q, (p + r) % 3]
         f = (j - r) % 3 if j >= 0 else 0
         la, lb = lab[T[q, (f + 1 + r) % 3]], lab[T[q, (f + 2 + r) % 3]]
@@ -191,7 +191,7 @@ def _remote_cost(i, T, S, nwin, lab, K, tol, w, strides, lum_start, lum_triples,
     out = np.zeros(K, np.int64)
     none = np.empty(0, np.int64)
     for a in range(lum_start[i], lum_start[i + 1]):
-        q = lum_triples[a]
+        q = np.int64(lum_triples[a])
         j = 0 if T[q, 0] == i else (1 if T[q, 1] == i else 2)
         _remote(T, S, nwin, q, j, lab, tol, w, strides, wkeys, whead, wmask, mkeys, mhead, mmask, nxt, out, none)
     return out
@@ -207,8 +207,8 @@ def _remote_conflicts(T, S, nwin, lab, tol, w, strides, wkeys, whead, wmask, mke
     none = np.empty(0, np.int64)
     for q in only:
         out[:] = 0
-        if _remote(T, S, nwin, q, -1, lab, tol, w, strides, wkeys, whead, wmask, mkeys, mhead, mmask, nxt, out,
-                   none) > 0:
+        if _remote(T, S, nwin, q, np.int64(-1), lab, tol, w, strides, wkeys, whead, wmask, mkeys, mhead, mmask, nxt,
+                   out, none) > 0:
             bad[n] = q
             n += 1
         total += out[1]

@@ -173,12 +173,12 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
         # every roll at once, with the margins of the worst and best sector: most LEDs are decided here
         if can[i]:
             for side in range(4):
-                lim[side] = cos_limit(view[side // 2] - r * k_sure[side] / wz_lo, t_lo[i], t_hi[i], True)
+                lim[side] = cos_limit(view[side // 2] - r * k_sure[side] / wz_lo, t_lo[i], t_hi[i], np.bool_(True))
             if gamma_arcs(lim, pieces, tmp) == FULL:
                 seen_n[i], maybe_n[i] = FULL, FULL
                 continue
         for side in range(4):
-            lim[side] = cos_limit(view[side // 2 + 2] - r * k_may[side] / wz_hi, t_lo[i], t_hi[i], False)
+            lim[side] = cos_limit(view[side // 2 + 2] - r * k_may[side] / wz_hi, t_lo[i], t_hi[i], np.bool_(False))
         if gamma_arcs(lim, pieces, tmp) == 0:
             t_lo[i] = math.inf  # never seen: out of every window
             continue
@@ -222,7 +222,7 @@ def led_bounds(box: np.ndarray, xy: np.ndarray, radii: np.ndarray, view: np.ndar
                     if b - a >= TWO_PI:
                         a, b = p0, p1
                     one[0, 0], one[0, 1] = p0, p1
-                    m = cut_arcs(one, 1, a, b, tmp2)
+                    m = cut_arcs(one, np.int64(1), a, b, tmp2)  # not literals: one signature to compile
                     for q in range(m):  # room: ARCS per LED
                         arcs[i, count[i], 0], arcs[i, count[i], 1] = one[q, 0], one[q, 1]
                         count[i] += 1

@@ -25,7 +25,7 @@ FULL = -1
 
 
 @njit(cache=True)
-def cut_arcs(pieces: np.ndarray, n: int, s2: float, e2: float, tmp: np.ndarray) -> int:
+def cut_arcs(pieces: np.ndarray, n: int | np.int64, s2: float, e2: float, tmp: np.ndarray) -> int:
     """Intersect the arcs ``pieces[:n]`` (each ``[s, e]``, ``e - s <= 2π``) with the arc ``[s2, e2]``, in place."""
     k = 0
     for j in range(n):
@@ -36,7 +36,8 @@ def cut_arcs(pieces: np.ndarray, n: int, s2: float, e2: float, tmp: np.ndarray) 
             if lo <= hi and k < len(tmp):
                 tmp[k, 0], tmp[k, 1] = lo, hi
                 k += 1
-    pieces[:k] = tmp[:k]
+    for j in range(k):  # element by element: a slice copy compiles numba's shape-error message machinery
+        pieces[j, 0], pieces[j, 1] = tmp[j, 0], tmp[j, 1]
     return k
 
 
@@ -56,15 +57,15 @@ def gamma_arcs(limits: np.ndarray, pieces: np.ndarray, tmp: np.ndarray) -> int:
         if n < 0:
             pieces[0, 0], pieces[0, 1] = c + g, c + TWO_PI - g
             n = 1
-        else:
-            n = cut_arcs(pieces, n, c + g, c + TWO_PI - g, tmp)
+        else:  # n as int64, not a literal: cut_arcs compiles for one signature
+            n = cut_arcs(pieces, np.int64(n), c + g, c + TWO_PI - g, tmp)
         if n == 0:
             return 0
     return FULL if n < 0 else n
 
 
 @njit(cache=True)
-def cos_limit(num: float, t_lo: float, t_hi: float, sure: bool) -> float:
+def cos_limit(num: float, t_lo: float, t_hi: float, sure: bool | np.bool_) -> float:
     """Bound on ``cos`` from ``t cos <= num`` for ``t in [t_lo, t_hi]``: for every such ``t`` (``sure``) or for some."""
     if num >= 0.0:
         t = t_hi if sure else t_lo
@@ -146,8 +147,9 @@ def merge_arcs(arcs: np.ndarray, i: int, n: int) -> int:
             merged[k, 1] = max(merged[k, 1], merged[j, 1])
         else:
             k += 1
-            merged[k] = merged[j]
-    arcs[i, :k + 1] = merged[:k + 1]
+            merged[k, 0], merged[k, 1] = merged[j, 0], merged[j, 1]
+    for j in range(k + 1):
+        arcs[i, j, 0], arcs[i, j, 1] = merged[j, 0], merged[j, 1]
     return k + 1
 
 

@@ -117,7 +117,7 @@ def _pair_excluded(xy, radii, a_idx, b_idx, centre, cell, rho, tree, m) -> np.nd
     n = len(xy)
     for s in range(0, len(a_idx), _ROWS):
         sl = slice(s, s + _ROWS)
-        ai, bi = a_idx[sl], b_idx[sl]
+        ai, bi = np.ascontiguousarray(a_idx[sl]), np.ascontiguousarray(b_idx[sl])
         used, inv = np.unique(cell[sl], return_inverse=True)
         near_q = _near(tree, centre[used], min(_NEAR_Q, n))[inv]
         cand = np.hstack([near_q, _near(tree, 0.5 * (xy[ai] + xy[bi]), min(_NEAR_ALONG, n))])
@@ -161,6 +161,7 @@ def case_b_pairs(xy: np.ndarray, radii: np.ndarray, env: Envelope, area: np.ndar
                  outside_by, known: np.ndarray | None = None) -> np.ndarray:
     """Pairs ``i < j`` (M, 2) that some axis point of case B may serve (a superset: see the module), beside
     the ``known`` pairs (K, 2), kept already (by another slice) and not searched again."""
+    xy = np.ascontiguousarray(xy, dtype=float)  # one layout: each kernel compiles for one signature
     n = len(xy)
     tree = cKDTree(xy)
     kept = _Kept(n, known)
@@ -291,10 +292,14 @@ def _blockers(xy, centre, cell_of, mem, near_q, near_mid, rho_in, m, small):
     ``near_mid``) lie deep in ``conv({a} ∪ D(q, rho_in))`` (:func:`_cone`), and the one if there is one (else -1)."""
     nblock = np.zeros(len(mem), dtype=np.int64)
     blocker = np.full(len(mem), -1, dtype=np.int64)
-    row = np.empty(near_q.shape[1] + near_mid.shape[1], dtype=np.int64)
+    nq, nm = near_q.shape[1], near_mid.shape[1]
+    row = np.empty(nq + nm, dtype=np.int64)
     for r in range(len(mem)):
         a, cell = mem[r], cell_of[r]
-        row[:near_q.shape[1]], row[near_q.shape[1]:] = near_q[cell], near_mid[r]
+        for t in range(nq):  # element by element: slice copies compile numba's shape-error message machinery
+            row[t] = near_q[cell, t]
+        for t in range(nm):
+            row[nq + t] = near_mid[r, t]
         ax, ay, qx, qy = xy[a, 0], xy[a, 1], centre[cell, 0], centre[cell, 1]
         for t in range(len(row)):
             c = row[t]

@@ -246,8 +246,13 @@ def _nearest_inside(kr, axis, tilt, position, xyz, radii, cand, view, cx, cy, ch
             best_d[j], best_k[j] = d, k
             n_best = min(n_best + 1, count)
         seen[p] = n_in
-        if n_best == count:
-            chosen[p] = np.sort(cand[p][best_k])
+        if n_best == count:  # the chosen, ascending (an insertion sort: np.sort would compile a quicksort)
+            for j in range(count):
+                v, i = cand[p, best_k[j]], j
+                while i > 0 and chosen[p, i - 1] > v:
+                    chosen[p, i] = chosen[p, i - 1]
+                    i -= 1
+                chosen[p, i] = v
 
 
 def find_windows(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camera) -> PoseWindows:
