@@ -136,6 +136,36 @@ def grid32_copy(tmp_path_factory, dest: Path, *extra: str, sealed: bool = False)
     return dest / "plan.yaml"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _kernels_compiled_once():
+    """In a fresh install each numba kernel compiles on its first use, then every later process loads it from the
+    cache. Both xdist workers start with tests that plan, so they compiled the same kernels side by side (15 of the
+    fast subset's 41 CPU-s of compiling, docs/performance.md). The first worker now begins by planning grid-32 (a
+    plan's kernels), the second by running the pair proof and the certificate on a small lattice (theirs): each
+    loads the other's from the cache when it needs them. Nothing is asserted; with the caches written, about a
+    second."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker == "gw0":
+        from planner.layout.read import read_layout
+        from planner.plan.pipeline import PlanOptions, make_plan
+
+        make_plan(read_layout(ROOT / "layouts" / "grid-32.yaml", None), PlanOptions(error_poses_per_m2=0.0))
+    elif worker == "gw1":
+        from planner.camera.model import Camera
+        from planner.verify.certify import certify_windows, tile_grid
+        from planner.verify.envelope import envelope
+        from planner.verify.pair_proof import prove_pair_set
+        from planner.verify.proof import possible_windows
+
+        xyz, radii = np.column_stack([grid_xy(4, 4, 0.5, 0.5), np.full(16, 2.5)]), np.full(16, 0.1)
+        prove_pair_set(xyz, radii, Camera(), 0.03)
+        env = envelope(Camera(), xyz, radii, 0.03)
+        origin, side, nx, _ = tile_grid(xyz[:, :2], env)
+        ix, iy = ((xyz[:, :2].mean(axis=0) + 0.01 - origin) // side).astype(int)  # the middle tile
+        certify_windows(xyz, radii, Camera(), 0.03, possible_windows(xyz, radii, env), min_width=0.08,
+                        budget=2_000, tiles=[int(iy * nx + ix)])
+
+
 @pytest.fixture(scope="session")
 def plan512_dir(tmp_path_factory) -> Path:
     """``grid-512.yaml`` planned once for the whole run (default IDs; firmware and report, no map; sealed under
