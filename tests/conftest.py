@@ -152,7 +152,7 @@ def _kernels_compiled_once():
         make_plan(read_layout(ROOT / "layouts" / "grid-32.yaml", None), PlanOptions(error_poses_per_m2=0.0))
     elif worker == "gw1":
         from planner.camera.model import Camera
-        from planner.verify.certify import certify_windows, tile_grid
+        from planner.verify.certify import certify_windows
         from planner.verify.envelope import envelope
         from planner.verify.pair_proof import prove_pair_set
         from planner.verify.proof import possible_windows
@@ -160,10 +160,18 @@ def _kernels_compiled_once():
         xyz, radii = np.column_stack([grid_xy(4, 4, 0.5, 0.5), np.full(16, 2.5)]), np.full(16, 0.1)
         prove_pair_set(xyz, radii, Camera(), 0.03)
         env = envelope(Camera(), xyz, radii, 0.03)
-        origin, side, nx, _ = tile_grid(xyz[:, :2], env)
-        ix, iy = ((xyz[:, :2].mean(axis=0) + 0.01 - origin) // side).astype(int)  # the middle tile
         certify_windows(xyz, radii, Camera(), 0.03, possible_windows(xyz, radii, env), min_width=0.08,
-                        budget=2_000, tiles=[int(iy * nx + ix)])
+                        budget=2_000, tiles=[middle_tile(xyz[:, :2], env)[0]])
+
+
+def middle_tile(xy: np.ndarray, env) -> tuple[int, tuple[float, float, float, float]]:
+    """The certificate's tile of axis points at the site's middle: its number and bounds (x0, x1, y0, y1) [m]."""
+    from planner.verify.certify import tile_grid
+
+    origin, side, nx, _ = tile_grid(xy, env)
+    ix, iy = ((xy.mean(axis=0) + 0.01 - origin) // side).astype(int)
+    x0, y0 = origin + side * np.array([ix, iy])
+    return int(iy * nx + ix), (x0, x0 + side, y0, y0 + side)
 
 
 @pytest.fixture(scope="session")

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import exact_nearest, grid_xy, poisson_xy
+from conftest import exact_nearest, grid_xy, middle_tile, poisson_xy
 from planner.camera.model import Camera, Poses
 from planner.verify import certify as ce
 from planner.verify import certify_box as cb
@@ -121,14 +121,6 @@ def test_roll_arcs_are_exact_enough_to_decide_a_small_box():
     assert 1 <= n <= 6
 
 
-def _middle_tile(xy, env):
-    """The tile of axis points at the site's middle: its number and bounds (x0, x1, y0, y1) [m]."""
-    origin, side, nx, _ = ce.tile_grid(xy, env)
-    ix, iy = ((xy.mean(axis=0) + 0.01 - origin) // side).astype(int)
-    x0, y0 = origin + side * np.array([ix, iy])
-    return int(iy * nx + ix), (x0, x0 + side, y0, y0 + side)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("layout", ["lattice", "poisson"])
 def test_a_certified_tile_holds_every_window_of_a_dense_sample_and_is_smaller(layout):
@@ -142,7 +134,7 @@ def test_a_certified_tile_holds_every_window_of_a_dense_sample_and_is_smaller(la
     xyz, radii = _site(xy)
     env = envelope(CAM, xyz, radii, D)
     cand = possible_windows(xyz, radii, env)
-    number, (x0, x1, y0, y1) = _middle_tile(xy, env)
+    number, (x0, x1, y0, y1) = middle_tile(xy, env)
     cert = ce.certify_windows(xyz, radii, CAM, D, cand, min_width=0.08, budget=100_000, tiles=[number])
     assert cert.tiles == 1 and cert.fallback_tiles == 0
     kept = set(ce._triples(cert.triangles))
