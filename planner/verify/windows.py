@@ -166,25 +166,28 @@ def nearest_seen(poses: Poses, xyz: np.ndarray, radii: np.ndarray, camera: Camer
     angle from the optical axis (ideal pixels, as :func:`planner.camera.model.project_discs` gives them;
     docs/verification.md). The image bounds and the choice are compiled (:func:`_nearest_inside`).
     """
-    n = len(xyz)
-    k = min(CANDIDATES, n)
     tree = cKDTree(xyz[:, :2])
     ceiling = float(np.median(xyz[:, 2]))
     chosen = np.full((len(poses), count), -1, dtype=np.int64)
     seen = np.zeros(len(poses), dtype=np.int64)
     for start in range(0, len(poses), _BATCH):
         part = poses.subset(slice(start, start + _BATCH))
-        axis = part.rotation[:, :, 2]
-        reach = (ceiling - part.position[:, 2]) / np.maximum(axis[:, 2], 1e-6)
-        aim = part.position[:, :2] + reach[:, None] * axis[:, :2]
-        _, cand = tree.query(aim, k=k)
-        cand = cand.reshape(len(part), k)
-        rot = part.rotation
-        kr = camera.intrinsics @ np.swapaxes(rot, 1, 2)  # K R^T, as planner.camera.model._disc_terms has it
-        _nearest_inside(kr, np.ascontiguousarray(rot[:, :, 2]), np.hypot(rot[:, 0, 2], rot[:, 1, 2]), part.position,
-                        xyz, radii, cand, np.array(camera.view_px), camera.cx_px, camera.cy_px,
+        axis = np.ascontiguousarray(part.rotation[:, :, 2])
+        kr = camera.intrinsics @ np.swapaxes(part.rotation, 1, 2)  # K R^T, as planner.camera.model._disc_terms has it
+        _nearest_inside(kr, axis, np.hypot(axis[:, 0], axis[:, 1]), part.position, xyz, radii,
+                        candidates(part, tree, ceiling), np.array(camera.view_px), camera.cx_px, camera.cy_px,
                         chosen[start:start + len(part)], seen[start:start + len(part)])
     return chosen, seen
+
+
+def candidates(poses: Poses, tree: cKDTree, ceiling_m: float) -> np.ndarray:
+    """The :data:`CANDIDATES` LEDs (P, K) whose centres lie nearest the point where each pose's optical axis meets
+    the ceiling at height ``ceiling_m`` [m] (``tree``: the LEDs' x, y): those :func:`nearest_seen` examines."""
+    axis = poses.rotation[:, :, 2]
+    reach = (ceiling_m - poses.position[:, 2]) / np.maximum(axis[:, 2], 1e-6)
+    k = min(CANDIDATES, tree.n)
+    _, cand = tree.query(poses.position[:, :2] + reach[:, None] * axis[:, :2], k=k)
+    return cand.reshape(len(poses), k)
 
 
 @njit(cache=True)

@@ -62,14 +62,13 @@ def test_window_is_the_three_seen_leds_nearest_the_image_centre():
 
 
 def _nearest_seen_by_the_camera_model(poses, xyz, radii, cam, count):
-    """nearest_seen written with the camera model's numpy images (project_discs) and a stable sort: the oracle."""
+    """nearest_seen's choice among the same candidates, with the camera model's numpy images (project_discs) and a
+    stable sort: the oracle."""
     from scipy.spatial import cKDTree
 
-    from planner.verify.windows import CANDIDATES
+    from planner.verify.windows import candidates
 
-    cand = cKDTree(xyz[:, :2]).query(poses.position[:, :2] + ((np.median(xyz[:, 2]) - poses.position[:, 2])
-                                     / np.maximum(poses.rotation[:, 2, 2], 1e-6))[:, None] * poses.rotation[:, :2, 2],
-                                     k=min(CANDIDATES, len(xyz)))[1]
+    cand = candidates(poses, cKDTree(xyz[:, :2]), float(np.median(xyz[:, 2])))
     return nearest_by_the_model(poses, cand, xyz, radii, cam, count)
 
 
