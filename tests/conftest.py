@@ -12,6 +12,7 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,47 @@ ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 """Where the installed console scripts are: run them by path, never ``python -m planner...`` from the checkout
 (its working directory would put the source tree ahead of the installed package)."""
+
+SCRIPTS = {ep.name: ep for ep in metadata.distribution("vlp-plan").entry_points if ep.group == "console_scripts"}
+"""The installed console scripts' entry points, by command name (what each script's wrapper calls)."""
+
+
+def vlp(command: str, *args: object, cwd: str | Path | None = None, env: dict[str, str] | None = None,
+        input: str = "") -> subprocess.CompletedProcess[str]:
+    """The installed console script ``command`` run on ``args`` in this process: the function its wrapper calls,
+    with ``sys.argv``, the working directory, the environment (``env`` replaces it, as ``subprocess.run`` does)
+    and the standard streams its own; stdin holds ``input`` and is not a terminal. The exit code, stdout and
+    stderr, as ``subprocess.run(capture_output=True, text=True)`` gives them.
+
+    A command run so costs no interpreter start and no imports (0.3 to 1.3 s a process, docs/performance.md).
+    What only a process shows stays a process: the scripts themselves, their start-up time, signals, terminals,
+    resource limits (tests/cli/test_commands.py, test_startup.py, test_hostile_files.py...)."""
+    main = SCRIPTS[command].load()
+    raw = io.BytesIO(), io.BytesIO()
+    out, err = (io.TextIOWrapper(b, encoding="utf-8", newline="\n") for b in raw)
+    saved = sys.argv, sys.stdin, sys.stdout, sys.stderr, os.getcwd(), dict(os.environ)
+    try:
+        sys.argv, sys.stdin, sys.stdout, sys.stderr = [command, *map(str, args)], io.StringIO(input), out, err
+        if env is not None:
+            os.environ.clear()
+            os.environ.update(env)
+        if cwd is not None:
+            os.chdir(cwd)
+        try:
+            code = main()
+        except SystemExit as done:  # argparse's errors, --help and --version, as the script's sys.exit sees them
+            code = done.code if isinstance(done.code, int) or done.code is None else 1
+            if isinstance(done.code, str):
+                print(done.code, file=err)
+    finally:
+        sys.argv, sys.stdin, sys.stdout, sys.stderr, cwd_was, env_was = saved
+        os.chdir(cwd_was)
+        os.environ.clear()
+        os.environ.update(env_was)
+    out.flush()
+    err.flush()
+    return subprocess.CompletedProcess([command, *map(str, args)], code or 0, *(b.getvalue().decode() for b in raw))
+
 
 SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
                  "test_efficiency.py:small_json", "test_accuracy.py:table3"}
@@ -104,7 +146,7 @@ def shared_vlp_plan(tmp_path_factory, *args: str) -> PlanRun:
     with _shared_folder(tmp_path_factory, f"run-{key}") as out:
         record = out.with_name(f"{out.name}.json")
         if not record.is_file():
-            done = subprocess.run(["vlp-plan", *args, "-o", str(out)], capture_output=True, text=True, cwd=ROOT)
+            done = vlp("vlp-plan", *args, "-o", str(out), cwd=ROOT)
             record.write_text(json.dumps([done.returncode, done.stdout, done.stderr]))
         code, stdout, stderr = json.loads(record.read_text())
     return PlanRun(code, stdout, stderr, out)

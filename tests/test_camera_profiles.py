@@ -3,13 +3,12 @@
 import dataclasses
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 from planner.camera.file import camera_from, camera_profiles
 from planner.camera.model import Camera
 from planner.errors import UsageError
@@ -59,17 +58,16 @@ def test_an_unknown_name_lists_the_profiles_and_a_camera_file_still_reads(tmp_pa
 
 
 def test_vlp_plan_lists_the_cameras_without_a_layout(tmp_path):
-    done = subprocess.run(["vlp-plan", "--list-cameras"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    done = vlp("vlp-plan", "--list-cameras", cwd=tmp_path)
     assert done.returncode == 0 and done.stderr == ""
     lines = done.stdout.splitlines()
     assert lines[0].split()[:4] == ["name", "role", "lens", "image"]
     assert any(line.split()[:5] == ["wide", "wide", "pinhole", "4032x3024", "79.0"] for line in lines)
-    shown = json.loads(subprocess.run(["vlp-plan", "--list-cameras", "--json"], capture_output=True, text=True,
-                                      timeout=60).stdout)["cameras"]
+    shown = json.loads(vlp("vlp-plan", "--list-cameras", "--json").stdout)["cameras"]
     assert [c["name"] for c in shown] == list(PROFILES)
     assert all(c["sources"] and c["hfov_deg"] > 0 and c["row_time_range_s"][0] > 0 for c in shown)
     assert list(tmp_path.iterdir()) == []
-    bare = subprocess.run(["vlp-plan"], capture_output=True, text=True, timeout=60)
+    bare = vlp("vlp-plan")
     assert bare.returncode == 2 and "required: LAYOUT" in bare.stderr and bare.stderr.count("\n") == 1
 
 
@@ -77,16 +75,15 @@ def test_vlp_plan_lists_the_cameras_without_a_layout(tmp_path):
 def test_vlp_plan_and_verify_take_a_profile_by_name(tmp_path):
     out = tmp_path / "out"
     quick = ["--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0", "--poses-per-m2", "20"]
-    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--camera", "wide",
-                           *quick], capture_output=True, text=True, timeout=120)
+    done = vlp("vlp-plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--camera", "wide",
+               *quick)
     assert done.returncode == 0, done.stderr
     camera = yaml.safe_load((out / "plan.yaml").read_text())["camera"]
     assert camera["name"] == "wide" and camera["distortion"][:2] == [-0.08, 0.02] and camera["fx_px"] == 2561.2
-    verify = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "main", "--poses-per-m2", "20",
-                             "--json"], capture_output=True, text=True, timeout=120)
+    verify = vlp("vlp-verify", str(out / "plan.yaml"), "--camera", "main", "--poses-per-m2", "20",
+                 "--json")
     assert verify.returncode in (0, 3), verify.stderr
-    refused = subprocess.run(["vlp-verify", str(out / "plan.yaml"), "--camera", "iphone"], capture_output=True,
-                             text=True, timeout=60)
+    refused = vlp("vlp-verify", str(out / "plan.yaml"), "--camera", "iphone")
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1
     assert "--camera iphone: no such camera profile or file; profiles: paper, main" in refused.stderr
 

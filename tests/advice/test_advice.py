@@ -4,12 +4,11 @@ below 50 % say NOT USABLE and exit 3; every README vlp-plan command is usable or
 import json
 import re
 import shlex
-import subprocess
 
 import pytest
 import yaml
 
-from conftest import ROOT, shared_vlp_plan
+from conftest import ROOT, shared_vlp_plan, vlp
 
 LAYOUTS = ROOT / "layouts"
 
@@ -19,7 +18,7 @@ FAST = ("--json", "--no-report", "--no-map", "--error-poses-per-m2", "0")
 
 def _plan(args: list[str], cwd) -> tuple[int, dict, str]:
     """Run the installed vlp-plan with ``--json``: exit code, JSON summary, stderr."""
-    run = subprocess.run(["vlp-plan", *args, *FAST], capture_output=True, text=True, cwd=cwd)
+    run = vlp("vlp-plan", *args, *FAST, cwd=cwd)
     assert "Traceback" not in run.stderr, run.stderr
     return run.returncode, json.loads(run.stdout), run.stderr
 
@@ -35,8 +34,7 @@ def _apply(row: dict, tmp_path) -> list[str]:
 def rig(tmp_path_factory):
     """The paper's rig planned once with its site report (no maps): exit code, JSON summary, stderr, folder."""
     tmp = tmp_path_factory.mktemp("rig")
-    run = subprocess.run(["vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(tmp / "rig"), "--json", "--no-map"],
-                         capture_output=True, text=True, cwd=tmp)
+    run = vlp("vlp-plan", str(LAYOUTS / "paper-rig.yaml"), "-o", str(tmp / "rig"), "--json", "--no-map", cwd=tmp)
     assert "Traceback" not in run.stderr, run.stderr
     return run.returncode, json.loads(run.stdout), run.stderr, tmp / "rig"
 
@@ -115,8 +113,8 @@ def test_readme_grid_512_is_usable(plan512_dir):
 
 
 def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
-    run = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
-                          "--no-map", "--error-poses-per-m2", "0"], capture_output=True, text=True)
+    run = vlp("vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
+              "--no-map", "--error-poses-per-m2", "0")
     assert run.returncode == 3
     lines = run.stdout.splitlines()
     verdict = next(line for line in lines if line.startswith("  verdict"))
@@ -128,8 +126,8 @@ def test_not_usable_summary_text_is_not_an_endorsement(tmp_path):
     assert "not an endorsement" in next(line for line in lines if line.startswith("  proof"))
     table = lines[lines.index(next(line for line in lines if line.startswith("  advice"))) + 1:]
     assert table[0].split()[:3] == ["as", "planned", "(this"]
-    again = subprocess.run(["vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
-                            "--no-map", "--error-poses-per-m2", "0", "--allow-unusable"], capture_output=True, text=True)
+    again = vlp("vlp-plan", str(LAYOUTS / "corridor.csv"), "-o", str(tmp_path / "o"), "--no-report",
+                "--no-map", "--error-poses-per-m2", "0", "--allow-unusable")
     assert again.returncode == 0 and "NOT USABLE" in again.stderr
 
 
@@ -148,6 +146,6 @@ def test_site_report_shows_the_advice_and_no_classes_under_the_window_scheme(rig
     assert doc["scheme"] == "window" and "<th>class</th>" not in html  # odd/even means nothing here
     doc["advice"]["recommended"] = 99  # a hand-edited plan naming no row: one line, exit 1
     (out / "plan.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
-    bad = subprocess.run(["vlp-report", str(out / "plan.yaml")], capture_output=True, text=True)
+    bad = vlp("vlp-report", str(out / "plan.yaml"))
     assert bad.returncode == 1 and "Traceback" not in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and "advice.recommended 99" in bad.stderr

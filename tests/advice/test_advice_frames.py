@@ -8,14 +8,14 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 
 ROOM = str(ROOT / "layouts" / "outline-room.dxf")
 FAST = ["--json", "--no-report", "--no-map", "--no-firmware", "--error-poses-per-m2", "0"]
 
 
 def _plan(*args: str, cwd) -> subprocess.CompletedProcess:
-    run = subprocess.run(["vlp-plan", ROOM, "--leds", "128", *args, *FAST], capture_output=True, text=True, cwd=cwd)
+    run = vlp("vlp-plan", ROOM, "--leds", "128", *args, *FAST, cwd=cwd)
     assert "Traceback" not in run.stderr, run.stderr
     return run
 

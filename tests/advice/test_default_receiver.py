@@ -10,12 +10,12 @@ import subprocess
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 from dxf_factory import office_48
 
 
 def _run(args: list[str], cwd) -> subprocess.CompletedProcess:
-    done = subprocess.run(["vlp-plan", *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+    done = vlp("vlp-plan", *args, cwd=cwd)
     assert "Traceback" not in done.stderr, done.stderr
     return done
 
@@ -78,8 +78,7 @@ def test_a_site_no_mode_serves_gets_its_plan_verdict_and_advice_without_frames(h
 
 def test_the_frameless_plan_reads_back_and_vlp_verify_judges_it(house):
     _, tmp_path = house  # vlp-verify only reads the plan: the folder stays as the test above reads it
-    done = subprocess.run(["vlp-verify", "house-vlp/plan.yaml"], capture_output=True, text=True, cwd=tmp_path,
-                          timeout=600)
+    done = vlp("vlp-verify", "house-vlp/plan.yaml", cwd=tmp_path)
     assert done.returncode == 3 and "Traceback" not in done.stderr, done.stderr
     assert "NOT USABLE" in done.stdout + done.stderr
 

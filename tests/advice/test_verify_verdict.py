@@ -7,13 +7,13 @@ import subprocess
 import pytest
 import yaml
 
-from conftest import ROOT, grid32_copy
+from conftest import ROOT, grid32_copy, vlp
 
 CORRIDOR = str(ROOT / "layouts" / "corridor.csv")  # about 9 % of poses see three whole LEDs: NOT USABLE
 
 
 def _run(*args: str) -> subprocess.CompletedProcess:
-    run = subprocess.run(list(args), capture_output=True, text=True)
+    run = vlp(*args)
     assert "Traceback" not in run.stderr, run.stderr
     return run
 

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+from conftest import vlp
 from planner.calibration.blink import blink_timer
 from planner.errors import UsageError
 
@@ -31,8 +32,7 @@ def test_the_firmware_blinks_at_its_rate_on_simavr(tmp_path, hz):
     from planner.flash.avr.build import AVR_FLAGS, build_harness
     from planner.flash.avr.trace import read_vcd
 
-    done = subprocess.run(["vlp-calibrate", "--blink-firmware", str(tmp_path / "fw"), "--blink-hz", str(hz), "--json"],
-                          capture_output=True, text=True, timeout=60)
+    done = vlp("vlp-calibrate", "--blink-firmware", str(tmp_path / "fw"), "--blink-hz", str(hz), "--json")
     assert done.returncode == 0, done.stderr
     claimed = json.loads(done.stdout)["blink_firmware"]["blink_hz"]
     elf = tmp_path / "blink.elf"

@@ -12,6 +12,7 @@ import pytest
 import yaml
 from boards import POSES, board_pose, charuco_texture, pixel_rays, render_board
 
+from conftest import vlp
 from planner.calibration.chessboard import Board
 from planner.camera.file import read_camera
 from planner.camera.model import Camera, rotation_from_angles
@@ -40,7 +41,7 @@ def _photos(folder, camera: Camera, spread: float, distance: float, seed: int) -
 
 
 def _run(*argv, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run(["vlp-calibrate", *map(str, argv)], capture_output=True, text=True, timeout=120, cwd=cwd)
+    return vlp("vlp-calibrate", *map(str, argv), cwd=cwd)
 
 
 def _distortion_error_px(a: Camera, b: Camera, seen_px: np.ndarray) -> float:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import BIN, ROOT, grid32_copy
+from conftest import BIN, ROOT, grid32_copy, vlp
 from planner.cli.plan import console_main, main
 
 LAYOUTS = ROOT / "layouts"
@@ -90,8 +90,11 @@ def test_default_outdir_is_next_to_the_layout(tmp_path):
 
 
 def run(args, cwd, hash_seed: str | None = None):
-    env = None if hash_seed is None else dict(os.environ, PYTHONHASHSEED=hash_seed)
-    return subprocess.run([str(BIN / "vlp-plan"), *args], cwd=cwd, env=env, capture_output=True, text=True)
+    """The installed vlp-plan on ``args``: in this process, or as a process under ``hash_seed`` (fixed at start-up)."""
+    if hash_seed is None:
+        return vlp("vlp-plan", *args, cwd=cwd)
+    return subprocess.run([str(BIN / "vlp-plan"), *args], cwd=cwd, env=dict(os.environ, PYTHONHASHSEED=hash_seed),
+                          capture_output=True, text=True)
 
 
 def write(tmp_path, name, text):
@@ -223,8 +226,8 @@ def test_explicit_scheme_that_does_not_verify_exits_3_with_the_plan_written(tmp_
 
 def test_vlp_verify_map_into_a_missing_directory_is_a_usage_error(tmp_path, tmp_path_factory):
     plan = grid32_copy(tmp_path_factory, tmp_path / "o", "--error-poses-per-m2", "0")  # any plan: the map path is wrong
-    result = subprocess.run([str(BIN / "vlp-verify"), str(plan),
-                             "--map", str(tmp_path / "no" / "such" / "map.png")], cwd=ROOT, capture_output=True, text=True)
+    result = vlp("vlp-verify", str(plan),
+                 "--map", str(tmp_path / "no" / "such" / "map.png"), cwd=ROOT)
     assert result.returncode == 2 and "does not exist" in result.stderr and "Traceback" not in result.stderr
 
 
@@ -243,8 +246,7 @@ def test_flags_that_ask_absurd_work_are_usage_errors(tmp_path, command, flag, va
     """Bounded before any work starts: exit 2, one line naming the flag, nothing written."""
     args = [] if command == "vlp-accuracy" else [str(ROOT / "layouts" / "grid-32.yaml" if command == "vlp-plan"
                                                     else tmp_path / "plan.yaml")]
-    done = subprocess.run([command, *args, f"{flag}={value}", *(["-o", str(tmp_path / "o")] if command == "vlp-plan"
-                                                                else [])],
-                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    done = vlp(command, *args, f"{flag}={value}", *(["-o", str(tmp_path / "o")] if command == "vlp-plan"
+                                                    else []), cwd=tmp_path)
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert f"argument {flag}: {message}" in done.stderr and list(tmp_path.iterdir()) == []

@@ -7,7 +7,7 @@ import pty
 import re
 import subprocess
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 
 GRID = str(ROOT / "layouts" / "grid-32.yaml")
 TIMING = re.compile(r"^vlp-plan: timing +(\d+\.\d\d) s  (.+)$")
@@ -54,6 +54,6 @@ def test_json_and_pipes_stay_quiet(tmp_path):
                                         "--scheme", "paper", "--no-report", "--no-firmware"])
     assert code == 0 and json.loads(out)["luminaires"] == 32
     assert err == ""  # a terminal, but --json: no progress
-    done = subprocess.run(["vlp-plan", GRID, "-o", str(tmp_path / "b"), "--no-verify", "--scheme", "paper",
-                           "--no-report", "--no-firmware"], capture_output=True, text=True, timeout=600)
+    done = vlp("vlp-plan", GRID, "-o", str(tmp_path / "b"), "--no-verify", "--scheme", "paper",
+               "--no-report", "--no-firmware")
     assert done.returncode == 0 and done.stderr == ""  # a pipe (CI log): no progress, and no timings unasked

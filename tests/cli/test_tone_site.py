@@ -3,13 +3,13 @@ tones are kept, two luminaires of one tone close together are reported as ambigu
 retune; no frames or firmware are written; bad tones are refused in one line."""
 
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from conftest import vlp
 from planner.modulation.tones import tones_apart
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,10 +26,6 @@ def grid_site(path: Path, same: tuple[int, int] | None) -> dict:
     doc = {"unit": "m", "height": 2.5, "radius": 0.1, "outline": [[0, 0], [4, 0], [4, 2], [0, 2]], "luminaires": lums}
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return doc
-
-
-def vlp(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(list(args), capture_output=True, text=True, timeout=600, cwd=ROOT)
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +79,7 @@ def test_distinct_tones_have_no_clash(tmp_path):
 
 
 def test_bundled_tone_rig(tmp_path):
-    done = vlp("vlp-plan", "layouts/tone-rig.yaml", "-o", str(tmp_path / "out"), "--json", *FAST)
+    done = vlp("vlp-plan", str(ROOT / "layouts" / "tone-rig.yaml"), "-o", str(tmp_path / "out"), "--json", *FAST)
     s = json.loads(done.stdout)
     assert s["scheme"] == "tones" and s["tones"]["tone_classes"] == 5 and s["tones"]["clashes"] == []
     plan = yaml.safe_load((tmp_path / "out" / "plan.yaml").read_text())
@@ -108,8 +104,7 @@ def test_bundled_tone_rig(tmp_path):
 ])
 def test_refusals_are_one_line(tmp_path, body, args, code, words):
     (tmp_path / "site.yaml").write_text("luminaires:\n" + body)
-    done = subprocess.run(["vlp-plan", "site.yaml", "-o", "out", *args], capture_output=True, text=True,
-                          timeout=600, cwd=tmp_path)
+    done = vlp("vlp-plan", "site.yaml", "-o", "out", *args, cwd=tmp_path)
     assert done.returncode == code
     assert done.stderr.count("\n") == 1 and words in done.stderr and "Traceback" not in done.stderr
     assert not (tmp_path / "out").exists()

@@ -1,9 +1,10 @@
 """The edit-verify-flash loop (issue 38, Build 4): an ``id`` edited in plan.yaml, ``vlp-verify`` naming what
 disagrees, ``vlp-plan --from-plan`` rebuilding frames and firmware, ``vlp-flash`` flashing simulated drivers.
 
-The installed console scripts run as a user would run them. The plan is grid-32 planned once; the edits
-are found by verifying candidate IDs for its first luminaire in process (which IDs keep the windows
-unique depends on the plan the planner makes, so the test finds one of each kind rather than naming it).
+The installed console scripts run as a user runs them (their entry points, in process: ``conftest.vlp``).
+The plan is grid-32 planned once; the edits are found by verifying candidate IDs for its first luminaire
+in process (which IDs keep the windows unique depends on the plan the planner makes, so the test finds one
+of each kind rather than naming it).
 """
 
 from __future__ import annotations
@@ -11,26 +12,19 @@ from __future__ import annotations
 import json
 import re
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
 
-from conftest import SITE_KEY, grid32_copy
+from conftest import SITE_KEY, grid32_copy, vlp
 from planner.firmware.image import parse_config_image
 from planner.plan.file import load_plan, plan_from_document
 from planner.plan.rebuild import codec, verify_plan_file
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, POSES_PER_M2
 
-BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = SITE_KEY
 FIRST = "R01C01"
-
-
-def _run(command: str, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=timeout)
 
 
 def _edit(text: str, new_id: int) -> str:
@@ -77,7 +71,7 @@ def test_edit_verify_rebuild_and_flash(site, tmp_path):
     """Done when (issue 38, Build 4): one id edited, vlp-verify names the luminaire whose frame sends the old
     ID, --from-plan rebuilds the firmware, and vlp-flash flashes it to simulated drivers."""
     edited, new_id = _edited(site, tmp_path, "clean"), site["clean"]
-    checked = _run("vlp-verify", edited)
+    checked = vlp("vlp-verify", edited)
     assert checked.returncode == 3, checked.stderr
     assert f"{FIRST} (id {new_id}: its frame sends ID {site['old']})" in checked.stdout
     verdict = next(line for line in checked.stdout.splitlines() if line.startswith("  verdict"))
@@ -85,11 +79,11 @@ def test_edit_verify_rebuild_and_flash(site, tmp_path):
     # the flasher refuses the edited plan as it stands: it was edited since it was sealed under the site key
     key = ["--key-file", site["base"] / "key"]
     url = f"sim://?key={KEY.hex()}&drivers=32"
-    refused = _run("vlp-flash", edited, "--all", "--bus", "--port", url, *key, "--json")
+    refused = vlp("vlp-flash", edited, "--all", "--bus", "--port", url, *key, "--json")
     assert refused.returncode == 1 and "the plan was edited since it was sealed" in refused.stderr
 
     out = tmp_path / "rebuilt"
-    rebuilt = _run("vlp-plan", "--from-plan", edited, "-o", out, "--json", *key)  # the key seals the rebuilt plan
+    rebuilt = vlp("vlp-plan", "--from-plan", edited, "-o", out, "--json", *key)  # the key seals the rebuilt plan
     assert rebuilt.returncode == 0, rebuilt.stderr
     summary = json.loads(rebuilt.stdout)
     assert summary["verified"] and summary["sealed"] and summary["frames_made_again"] == [
@@ -101,10 +95,10 @@ def test_edit_verify_rebuild_and_flash(site, tmp_path):
     assert image["id"] == new_id and image["chips"] == plan.luminaires[0].frame.chips
     assert any("rebuilt from an edited plan by vlp-plan --from-plan: 1 frame(s)" in n for n in plan.source["notes"])
 
-    again = _run("vlp-verify", out / "plan.yaml", "--json")
+    again = vlp("vlp-verify", out / "plan.yaml", "--json")
     assert again.returncode == 0 and json.loads(again.stdout)["frame_mismatches"] == []
 
-    flashed = _run("vlp-flash", out / "plan.yaml", "--all", "--bus", "--port", url, *key, "--journal",
+    flashed = vlp("vlp-flash", out / "plan.yaml", "--all", "--bus", "--port", url, *key, "--journal",
                    tmp_path / "as-built.json", "--json")
     assert flashed.returncode == 0, flashed.stderr
     doc = json.loads(flashed.stdout)
@@ -115,25 +109,25 @@ def test_edit_verify_rebuild_and_flash(site, tmp_path):
 
 def test_an_edit_whose_ids_read_alike_is_named_and_refused(site, tmp_path):
     edited, new_id = _edited(site, tmp_path, "conflict"), site["conflict"]
-    checked = _run("vlp-verify", edited)
+    checked = vlp("vlp-verify", edited)
     assert checked.returncode == 3
     assert "same key: " in checked.stdout and FIRST in checked.stdout
     verdict = next(line for line in checked.stdout.splitlines() if line.startswith("  verdict"))
     assert "usable" not in verdict and "meets the goal" not in verdict
 
     out = tmp_path / "rebuilt"
-    refused = _run("vlp-plan", "--from-plan", edited, "-o", out)
+    refused = vlp("vlp-plan", "--from-plan", edited, "-o", out)
     assert refused.returncode == 1 and not out.exists()  # nothing written
     err = refused.stderr.strip().splitlines()
     assert len(err) == 1 and "fails verification, so no firmware was written: FAILED" in err[0]
     assert "--allow-unverified" in err[0]
 
-    forced = _run("vlp-plan", "--from-plan", edited, "-o", out, "--allow-unverified", "--json")
+    forced = vlp("vlp-plan", "--from-plan", edited, "-o", out, "--allow-unverified", "--json")
     assert forced.returncode == 3 and not json.loads(forced.stdout)["verified"]
     plan = load_plan(out / "plan.yaml")
     assert plan.ids[0] == new_id
     assert any("FAILED (written with --allow-unverified)" in n for n in plan.source["notes"])
-    again = _run("vlp-verify", out / "plan.yaml", "--json")  # the frames agree, the IDs still read alike
+    again = vlp("vlp-verify", out / "plan.yaml", "--json")  # the frames agree, the IDs still read alike
     assert again.returncode == 3
     doc = json.loads(again.stdout)
     assert doc["frame_mismatches"] == [] and not doc["passed"]
@@ -150,7 +144,7 @@ def test_a_frame_edited_by_hand_is_named_too(site, tmp_path):
     assert chips is not None
     flipped = chips.group(1)[:-1] + ("1" if chips.group(1)[-1] == "0" else "0")
     (folder / "plan.yaml").write_text(text[:chips.start(1)] + flipped + text[chips.end(1):])
-    checked = _run("vlp-verify", folder / "plan.yaml", "--json")
+    checked = vlp("vlp-verify", folder / "plan.yaml", "--json")
     assert checked.returncode == 3
     mismatch = json.loads(checked.stdout)["frame_mismatches"]
     assert [m["name"] for m in mismatch] == [FIRST] and mismatch[0]["frame_sends"] != site["old"]

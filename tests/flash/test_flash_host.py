@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from conftest import SITE_KEY, grid32_copy
+from conftest import SITE_KEY, grid32_copy, vlp
 from planner.cli.flash import console_main, shown_port
 from planner.errors import UsageError
 from planner.firmware.image import CRC_OFFSET, MAX_IMAGE_VERSION, SIGNATURE_OFFSET, config_image, parse_config_image
@@ -58,9 +58,9 @@ def _booted(path: Path, serial_: str = "check") -> SimulatedDriver:
     return SimulatedDriver(1, serial_, KEY, Flash(4096, path))
 
 
-def _flash(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+def _flash(*args: str) -> subprocess.CompletedProcess:
     """The installed ``vlp-flash`` console script."""
-    return subprocess.run([str(BIN / "vlp-flash"), *args], capture_output=True, text=True, timeout=timeout)
+    return vlp("vlp-flash", *args)
 
 
 def _entries(journal: Path) -> dict[str, dict]:

@@ -27,11 +27,11 @@ from types import SimpleNamespace
 
 import pytest
 import serial
-from test_driver_avr import BAUD, BIN, RETRIES, _send
+from test_driver_avr import BAUD, RETRIES, _send
 from test_hostile_drivers import ATTACKS as MODEL_ATTACKS
 from test_hostile_drivers import Hostile
 
-from conftest import SITE_KEY, grid32_copy
+from conftest import SITE_KEY, grid32_copy, vlp
 from planner.flash.avr.runner import AvrBus, EmulatedDriver
 from planner.flash.flasher import flash_driver
 from planner.flash.keys import driver_key
@@ -191,10 +191,10 @@ def _vlp_flash(base: Path, port: str, where: dict[str, int], *extra: str) -> sub
     """The installed vlp-flash over the luminaires of ``where`` (their bus map), journal ``base/as-built.json``."""
     bus_map = base / "map.csv"
     bus_map.write_text("".join(f"{name},{address}\n" for name, address in where.items()))
-    return subprocess.run([str(BIN / "vlp-flash"), str(base / "a" / "plan.yaml"), *where, "--bus", "--bus-map",
-                           str(bus_map), "--port", port, "--key-file", str(base / "key"), "--baud", str(BAUD),
-                           "--journal", str(base / "as-built.json"), "--extra-timeout-ms", str(SLACK_MS),
-                           *extra], capture_output=True, text=True, timeout=600)
+    return vlp("vlp-flash", str(base / "a" / "plan.yaml"), *where, "--bus", "--bus-map",
+               str(bus_map), "--port", port, "--key-file", str(base / "key"), "--baud", str(BAUD),
+               "--journal", str(base / "as-built.json"), "--extra-timeout-ms", str(SLACK_MS),
+               *extra)
 
 
 def _image(base: Path, name: str) -> bytes:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import SITE_KEY, grid32_copy
+from conftest import SITE_KEY, grid32_copy, vlp
 from planner.cli.driver_sim import serve
 from planner.cli.flash import console_main
 from planner.firmware.image import config_image
@@ -160,9 +160,8 @@ def test_a_hostile_driver_on_a_pty_fails_alone_in_one_line(plans, tmp_path, beha
     line = PtyLine(bus)
     journal = tmp_path / "j.json"
     try:
-        got = subprocess.run([str(BIN / "vlp-flash"), str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port",
-                              line.port, "--key-file", str(plans / "key"), "--journal", str(journal)],
-                             capture_output=True, text=True, timeout=120)
+        got = vlp("vlp-flash", str(plans / "a" / "plan.yaml"), *NAMES, "--bus", "--port",
+                  line.port, "--key-file", str(plans / "key"), "--journal", str(journal))
     finally:
         line.close()
     _check_batch(got.stdout, got.stderr, got.returncode, journal, ATTACKS[behaviour])

@@ -2,8 +2,8 @@
 put back from an older copy or cut out is refused, naming the entry, by ``vlp-flash`` and ``vlp-report --key-file``;
 a plan sealed before the one a journal records as flashed is refused by ``vlp-flash``.
 
-The installed console scripts run as a user would run them, against simulated drivers (``sim://``) that keep
-their flash between runs.
+The installed console scripts run as a user runs them (their entry points, in process: ``conftest.vlp``),
+against simulated drivers (``sim://``) that keep their flash between runs.
 """
 
 from __future__ import annotations
@@ -11,18 +11,16 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 from planner.errors import InputError
 from planner.flash.flasher import FlashResult
 from planner.flash.journal import FORMAT, OLD_FORMAT, Journal
 from planner.flash.seal import seal_text
 
-BIN = Path(sys.executable).parent  # the installed console scripts
 KEY = bytes(range(32))
 NAMES = ["R01C01", "R01C02", "R01C03"]  # bus addresses 1..3, plan order
 EARLY = "2026-01-01T00:00:00Z"
@@ -30,8 +28,6 @@ DISTRUST = ("so no entry of it is believed: move the journal away; vlp-flash --v
             "drivers' proved answers")
 
 
-def _run(command: str, *args: object) -> subprocess.CompletedProcess:
-    return subprocess.run([str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +38,7 @@ def site(tmp_path_factory) -> Path:
     (base / "key").write_text(KEY.hex())
     (base / "key").chmod(0o600)
     for name, seed in (("old", "2"), ("new", "1")):
-        done = _run("vlp-plan", ROOT / "layouts" / "grid-32.yaml", "-o", base / name, "--no-map", "--no-report",
+        done = vlp("vlp-plan", ROOT / "layouts" / "grid-32.yaml", "-o", base / name, "--no-map", "--no-report",
                     "--error-poses-per-m2", "0", "--seed", seed, "--key-file", base / "key", "--json")
         assert done.returncode == 0, done.stderr
     old = (base / "old" / "plan.yaml").read_text()
@@ -52,7 +48,7 @@ def site(tmp_path_factory) -> Path:
 
 
 def _flash(plan: Path, site: Path, flash: Path, *extra: object, drivers: int = 3) -> subprocess.CompletedProcess:
-    return _run("vlp-flash", plan, *NAMES, "--bus", "--key-file", site / "key", "--port",
+    return vlp("vlp-flash", plan, *NAMES, "--bus", "--key-file", site / "key", "--port",
                 f"sim://?drivers={drivers}&key={KEY.hex()}&flash={flash}", *extra)
 
 
@@ -93,7 +89,7 @@ def test_a_journal_with_an_entry_removed_reordered_replayed_or_cut_is_refused_na
     now = json.loads(journal.read_text())
     assert [now["luminaires"][n]["verified"] for n in NAMES] == [True, False, False]
     assert early["luminaires"]["R01C02"]["verified"]
-    honest = _run("vlp-report", plan, "--key-file", site / "key", "--json")
+    honest = vlp("vlp-report", plan, "--key-file", site / "key", "--json")
     assert honest.returncode == 0, honest.stderr
     assert (json.loads(honest.stdout)["verified"], json.loads(honest.stdout)["failed"]) == (1, 2)
     report = plan.parent / "site-report.html"
@@ -107,7 +103,7 @@ def test_a_journal_with_an_entry_removed_reordered_replayed_or_cut_is_refused_na
         assert lines[0].startswith(f"vlp-flash: error: {journal}: ") and why in lines[0], (kind, lines[0])
         assert DISTRUST in lines[0] or "move it away to start a new one" in lines[0], (kind, lines[0])
         assert journal.read_text() == text  # refused before anything: no driver flashed, no entry written
-        refused = _run("vlp-report", plan, "--key-file", site / "key", "--json")
+        refused = vlp("vlp-report", plan, "--key-file", site / "key", "--json")
         assert refused.returncode == 1 and refused.stdout == "" and len(refused.stderr.splitlines()) == 1, kind
         assert why in refused.stderr and report.read_bytes() == before  # no report counts what the edit says
     journal.write_text(json.dumps(now, indent=2))  # the journal as vlp-flash left it: read, resumed, extended
@@ -147,7 +143,7 @@ def test_a_plan_older_than_the_one_the_journal_records_flashed_is_refused(site, 
     with pytest.raises(InputError, match="sealed without a time\\) is older than plan"):
         Journal(journal, "0123456789abcdef", KEY, "")
     # sealed anew, the older plan is the newest: no longer refused as older, and flashes with a journal of its own
-    again = _run("vlp-plan", "--from-plan", site / "old" / "plan.yaml", "-o", tmp_path / "again", "--key-file",
+    again = vlp("vlp-plan", "--from-plan", site / "old" / "plan.yaml", "-o", tmp_path / "again", "--key-file",
                  site / "key", "--json")
     assert again.returncode == 0, again.stderr
     other = _flash(tmp_path / "again" / "plan.yaml", site, flash, "--journal", journal)

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import json
-import subprocess
 
 import ezdxf
+
+from conftest import vlp
 
 
 def _drawing(path, extra: list[tuple[float, float]]) -> str:
@@ -24,7 +25,7 @@ def _drawing(path, extra: list[tuple[float, float]]) -> str:
 
 
 def _inspect(path: str, *flags: str) -> dict:
-    done = subprocess.run(["vlp-inspect", path, "--json", *flags], capture_output=True, text=True)
+    done = vlp("vlp-inspect", path, "--json", *flags)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
 

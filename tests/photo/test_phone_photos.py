@@ -16,12 +16,12 @@ phone within 10 cm of the centre; the Done-when's 20 poses at 33 MP run under ``
 """
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
 import yaml
 
+from conftest import vlp
 from planner.camera.file import read_camera
 from planner.camera.model import rotation_from_angles
 from planner.plan.file import load_plan
@@ -50,9 +50,8 @@ PLAN_ONLY = ("--no-report", "--no-map", "--error-poses-per-m2", "0")
 def tone_plan(tmp_path_factory):
     """The tone rig planned for the 33 MP phone: its plan.yaml."""
     folder = tmp_path_factory.mktemp("tone-rig")
-    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "tone-rig.yaml"), "-o", str(folder / "plan"),
-                           "--camera", str(_camera(folder, PHONE)), *PLAN_ONLY], capture_output=True, text=True,
-                          timeout=600)
+    done = vlp("vlp-plan", str(ROOT / "layouts" / "tone-rig.yaml"), "-o", str(folder / "plan"),
+               "--camera", str(_camera(folder, PHONE)), *PLAN_ONLY)
     assert done.returncode == 0, done.stderr
     return folder / "plan" / "plan.yaml"
 
@@ -65,9 +64,8 @@ def frame_plan(tmp_path_factory):
     for lum in layout["luminaires"]:
         del lum["tone_hz"]
     (folder / "frame-rig.yaml").write_text(yaml.safe_dump(layout))
-    done = subprocess.run(["vlp-plan", str(folder / "frame-rig.yaml"), "-o", str(folder / "plan"), "--no-firmware",
-                           "--camera", str(_camera(folder, PHONE)), *PLAN_ONLY], capture_output=True, text=True,
-                          timeout=600)
+    done = vlp("vlp-plan", str(folder / "frame-rig.yaml"), "-o", str(folder / "plan"), "--no-firmware",
+               "--camera", str(_camera(folder, PHONE)), *PLAN_ONLY)
     assert done.returncode == 0, done.stderr
     return folder / "plan" / "plan.yaml"
 
@@ -97,8 +95,8 @@ def _photos(plan_path, camera_path, seeds, folder, off_m=0.2):
 
 
 def _located(plan_path, camera_path, photo):
-    done = subprocess.run(["vlp-locate", str(plan_path), "--image", str(photo), "--camera", str(camera_path),
-                           "--json"], capture_output=True, text=True, timeout=600)
+    done = vlp("vlp-locate", str(plan_path), "--image", str(photo), "--camera", str(camera_path),
+               "--json")
     return done.returncode, json.loads(done.stdout) if done.stdout else None, done.stderr
 
 

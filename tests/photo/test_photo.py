@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import grid32_copy
+from conftest import grid32_copy, vlp
 from planner.camera.model import rotation_from_angles
 from planner.cli.locate import console_main as locate_main
 from planner.decode.image import srgb_to_linear
@@ -84,10 +84,6 @@ def _seen(plan_path, pose):
     return [doc.names[k] for k in seen_leds(np.array(pose[:3]), rotation, doc.xyz, doc.radii, doc.camera_model())]
 
 
-def _run(*argv):
-    return subprocess.run(list(argv), capture_output=True, text=True, timeout=300)
-
-
 # --- pieces ---------------------------------------------------------------------------------------
 
 def test_srgb_decoding_inverts_the_standard_encoding_and_weights_luminance():
@@ -140,7 +136,7 @@ def test_a_photo_of_the_flashed_plan_locates_within_10_cm(plan, tmp_path):
     """Issue 18's Done-when: a photographed plan (gamma, saturation, JPEG, a lit ceiling) locates within 10 cm."""
     photo = tmp_path / "photo.jpg"
     truth, _ = photograph(plan, POSE, photo)
-    done = _run("vlp-locate", str(plan), "--image", str(photo), "--json")
+    done = vlp("vlp-locate", str(plan), "--image", str(photo), "--json")
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     error_m = float(np.linalg.norm(np.array(out["position_m"]) - truth))
@@ -153,7 +149,7 @@ def test_a_photo_of_the_flashed_plan_locates_within_10_cm(plan, tmp_path):
     assert all(b["problem"] for b in blobs if b["id"] is None)  # the rest (cut by the border) say why
     periods = [b["stripe_period_rows"] for b in read]  # Manchester runs are 1-3 chips: a lit and a dark one 2-6
     assert all(2 * 4.27 - 1 <= p <= 6 * 4.27 + 1 for p in periods), periods
-    plain = _run("vlp-locate", str(plan), "--image", str(photo))  # without --json: the position, no blob list
+    plain = vlp("vlp-locate", str(plan), "--image", str(photo))  # without --json: the position, no blob list
     assert plain.returncode == 0 and "photo" not in json.loads(plain.stdout)
 
 
@@ -172,7 +168,7 @@ def test_the_as_built_check_flags_the_luminaire_playing_a_wrong_id(plan, tmp_pat
     photograph(plan, POSE, photos / "right.png", chips=chips, seed=2)
     (photos / "notes.txt").write_text("not a photo")
     out_dir = tmp_path / "report"
-    done = _run("vlp-report", str(plan), "--photos", str(photos), "-o", str(out_dir), "--json")
+    done = vlp("vlp-report", str(plan), "--photos", str(photos), "-o", str(out_dir), "--json")
     assert done.returncode == 3, done.stderr  # the report is written; a wrong ID fails the check
     check = json.loads(done.stdout)["asbuilt"]
     assert check["located_photos"] == 2 and [p["file"] for p in check["photos"]] == ["right.png", "wrong.JPG"]
@@ -181,7 +177,7 @@ def test_the_as_built_check_flags_the_luminaire_playing_a_wrong_id(plan, tmp_pat
     assert [(r["name"], r["planned_id"], r["plays"], r["photos"]) for r in flagged] == [(wrong, planned, [plays], showing)]
     right = {r["name"] for r in check["luminaires"] if r["status"] == "right"}
     assert right == (set(seen) | set(_seen(plan, POSE))) - {wrong}
-    one = _run("vlp-locate", str(plan), "--image", str(photos / "wrong.JPG"), "--json")  # located on the others
+    one = vlp("vlp-locate", str(plan), "--image", str(photos / "wrong.JPG"), "--json")  # located on the others
     assert one.returncode == 0 and f"luminaire {wrong} plays ID {plays}, planned {planned}" in one.stderr
     left = [b for b in json.loads(one.stdout)["photo"]["blobs"] if b["left_out"]]
     assert [(b["luminaire"], b["id"], b["verdict"]) for b in left] == [(wrong, plays, "wrong")]
@@ -202,7 +198,7 @@ def test_two_wrong_luminaires_in_one_photo_are_both_found(plan, tmp_path):
         plays[name] = int(doc.ids[k]) % 16 + 1
         chips[k] = frame_chips(plays[name] - 1, doc.code.word_bits, line_code("manchester"))
     truth, _ = photograph(plan, WRONG_POSE, tmp_path / "two.png", chips=chips, seed=4)
-    done = _run("vlp-locate", str(plan), "--image", str(tmp_path / "two.png"), "--json")
+    done = vlp("vlp-locate", str(plan), "--image", str(tmp_path / "two.png"), "--json")
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     assert np.linalg.norm(np.array(out["position_m"]) - truth) < 0.01
@@ -219,7 +215,7 @@ def test_a_photo_of_foreign_leds_lists_what_was_seen_and_exits_non_zero(plan, tm
     kinds = [list(pwm)[k % 3] for k in range(len(doc.names))]
     photo = tmp_path / "foreign.jpg"
     _, drawn = photograph(plan, POSE, photo, chips=[pwm[kind] for kind in kinds], seed=3)
-    done = _run("vlp-locate", str(plan), "--image", str(photo), "--json")
+    done = vlp("vlp-locate", str(plan), "--image", str(photo), "--json")
     assert done.returncode == 3 and "a position needs three" in done.stderr
     out = json.loads(done.stdout)
     assert out["position_m"] is None and out["problem"].startswith("0 of")
@@ -232,7 +228,7 @@ def test_a_photo_of_foreign_leds_lists_what_was_seen_and_exits_non_zero(plan, tm
     assert {round(c) for c in chips} == {10, 16} and all(abs(c - round(c)) < 0.5 for c in chips), chips
     assert all("foreign light" in b["problem"] for b in blobs if b["stripe_period_rows"]
                and b["stripe_period_rows"] > 60)  # the 16-chip lamp's dark stripes split it: joined, and said
-    quiet = _run("vlp-locate", str(plan), "--image", str(photo))
+    quiet = vlp("vlp-locate", str(plan), "--image", str(photo))
     assert quiet.returncode == 3 and quiet.stdout == "" and len(quiet.stderr.strip().splitlines()) == 1
 
 
@@ -288,7 +284,7 @@ def test_a_photo_through_a_distorted_wide_lens_locates_and_ignoring_the_lens_err
                                                                                    "hfov_deg")}))
     errors = {}
     for name, extra in (("lens", []), ("ignored", ["--camera", str(ideal)])):
-        done = _run("vlp-locate", str(plan), "--image", str(photo), "--json", *extra)
+        done = vlp("vlp-locate", str(plan), "--image", str(photo), "--json", *extra)
         assert done.returncode == 0, done.stderr
         out = json.loads(done.stdout)
         errors[name] = float(np.linalg.norm(np.array(out["position_m"]) - truth))

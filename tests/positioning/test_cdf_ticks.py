@@ -5,11 +5,12 @@ labels back from it (matplotlib's log ticks are ``$\\mathdefault{10^{1}}$`` stri
 style does not parse as math: drawn as they are, they print raw).
 """
 
-import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+
+from conftest import vlp
 
 SVG = "{http://www.w3.org/2000/svg}"
 
@@ -27,8 +28,7 @@ def tick_labels(svg: Path) -> dict[str, list[str]]:
 @pytest.mark.slow
 def test_vlp_accuracy_cdf_ticks_are_plain_numbers(tmp_path):
     svg = tmp_path / "cdf.svg"
-    done = subprocess.run(["vlp-accuracy", "--trials", "1", "--tilts", "0,40", "--cdf", str(svg)],
-                          capture_output=True, text=True, timeout=600)
+    done = vlp("vlp-accuracy", "--trials", "1", "--tilts", "0,40", "--cdf", str(svg))
     assert done.returncode == 0, done.stderr
     labels = tick_labels(svg)
     texts = [t for t in labels["x"] + labels["y"] if t]

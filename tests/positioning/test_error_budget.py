@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import vlp
 from planner.camera.model import Camera, rotation_from_angles
 from planner.cli.accuracy import console_main as accuracy_main
 from planner.cli.report import main as report_main
@@ -204,10 +205,9 @@ def test_a_plan_from_before_the_budget_says_its_figures_are_edge_noise_only():
 def test_vlp_accuracy_takes_a_camera_profile():
     """The rig with another phone: --camera NAME reaches the simulation (its field of view shows) and a wrong
     name is one line, exit 2."""
-    run = subprocess.run(["vlp-accuracy", "--trials", "1", "--tilts", "0", "--pixel-noise-only", "--camera", "wide", "--json"],
-                  capture_output=True, text=True)
+    run = vlp("vlp-accuracy", "--trials", "1", "--tilts", "0", "--pixel-noise-only", "--camera", "wide", "--json")
     assert run.returncode == 0, run.stderr
     doc = json.loads(run.stdout)
     assert doc["assumptions"]["camera"]["name"] == "wide" and doc["assumptions"]["camera"]["distortion"]
-    bad = subprocess.run(["vlp-accuracy", "--camera", "nope"], capture_output=True, text=True)
+    bad = vlp("vlp-accuracy", "--camera", "nope")
     assert bad.returncode == 2 and len(bad.stderr.splitlines()) == 1 and "profiles: paper" in bad.stderr

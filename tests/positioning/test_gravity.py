@@ -2,11 +2,11 @@
 
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
 
+from conftest import vlp
 from planner.camera.model import Camera, rotation_from_angles
 from planner.positioning.gravity import locate_gravity, two_point_pose
 from planner.positioning.observation import observe
@@ -104,9 +104,8 @@ def gravity_plan(tmp_path_factory):
     camera = tmp / "wide.yaml"
     camera.write_text("hfov_deg: 80\nwidth_px: 4000\nheight_px: 3000\n")
     out = tmp / "out"
-    done = subprocess.run(["vlp-plan", str(layout), "--receiver", "gravity", "--camera", str(camera), "-o", str(out),
-                           "--json", "--no-report", "--no-map", "--error-poses-per-m2", "0"],
-                          capture_output=True, text=True)
+    done = vlp("vlp-plan", str(layout), "--receiver", "gravity", "--camera", str(camera), "-o", str(out),
+               "--json", "--no-report", "--no-map", "--error-poses-per-m2", "0")
     assert done.returncode == 0, done.stderr
     return out / "plan.yaml", json.loads(done.stdout)
 
@@ -123,30 +122,28 @@ def test_plan_records_the_gravity_receiver(gravity_plan):
 
 def test_vlp_locate_uses_gravity_from_the_observation(gravity_plan, tmp_path):
     plan, _ = gravity_plan
-    sim = subprocess.run(["vlp-locate", str(plan), "--simulate", "1.0,0.9,1.2,15,40,10", "--noise-px", "0"],
-                         capture_output=True, text=True)
+    sim = vlp("vlp-locate", str(plan), "--simulate", "1.0,0.9,1.2,15,40,10", "--noise-px", "0")
     assert sim.returncode == 0, sim.stderr
     doc = json.loads(sim.stdout)
     assert len(doc["gravity"]) == 3
     doc["leds"] = doc["leds"][:2]  # two LEDs and gravity are enough
     obs = tmp_path / "obs.json"
     obs.write_text(json.dumps(doc))
-    done = subprocess.run(["vlp-locate", str(plan), str(obs)], capture_output=True, text=True)
+    done = vlp("vlp-locate", str(plan), str(obs))
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert result["method"] == "gravity"
     assert np.linalg.norm(np.array(result["position_m"]) - [1.0, 0.9, 1.2]) < 0.01
     doc["gravity"] = [0, 0, 0]
     obs.write_text(json.dumps(doc))
-    bad = subprocess.run(["vlp-locate", str(plan), str(obs)], capture_output=True, text=True)
+    bad = vlp("vlp-locate", str(plan), str(obs))
     assert bad.returncode == 1 and "gravity" in bad.stderr and "Traceback" not in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1
 
 
 def test_twin_locates_a_gravity_plan_with_accelerometer_noise(gravity_plan):
     plan, _ = gravity_plan
-    done = subprocess.run(["vlp-twin", str(plan), "--poses", "12", "--jobs", "1", "--json"],
-                          capture_output=True, text=True)
+    done = vlp("vlp-twin", str(plan), "--poses", "12", "--jobs", "1", "--json")
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     # rendered frames, 1 deg accelerometer noise, two-LED windows: measured 40 of 40 within 10 cm (2026-12-03)
@@ -155,7 +152,7 @@ def test_twin_locates_a_gravity_plan_with_accelerometer_noise(gravity_plan):
 
 def test_site_report_shows_coverage_per_receiver_mode(gravity_plan):
     plan, summary = gravity_plan
-    done = subprocess.run(["vlp-report", str(plan)], capture_output=True, text=True)
+    done = vlp("vlp-report", str(plan))
     assert done.returncode == 0, done.stderr
     html = (plan.parent / "site-report.html").read_text()
     share = f"two LEDs plus gravity {100 * summary['receiver']['coverage']['gravity']:.1f} %"
@@ -166,7 +163,7 @@ def test_vlp_verify_judges_a_gravity_plan_on_two_led_windows(gravity_plan, tmp_p
     import yaml
 
     plan, _ = gravity_plan
-    done = subprocess.run(["vlp-verify", str(plan), "--json"], capture_output=True, text=True)
+    done = vlp("vlp-verify", str(plan), "--json")
     assert done.returncode == 0, done.stderr
     ws = json.loads(done.stdout)["window_set"]
     assert ws["pairs"] > 0 and ws["proved"]
@@ -174,7 +171,7 @@ def test_vlp_verify_judges_a_gravity_plan_on_two_led_windows(gravity_plan, tmp_p
     doc["luminaires"][1]["id"] = doc["luminaires"][0]["id"]  # neighbours 1.2 m apart now share a label
     edited = tmp_path / "plan.yaml"
     edited.write_text(yaml.safe_dump(doc, sort_keys=False))
-    bad = subprocess.run(["vlp-verify", str(edited), "--json"], capture_output=True, text=True)
+    bad = vlp("vlp-verify", str(edited), "--json")
     assert bad.returncode == 3
     assert json.loads(bad.stdout)["window_set"]["read_alike"] > 0
 
@@ -210,8 +207,7 @@ def test_a_hand_edited_window_cap_is_one_clear_error(gravity_plan, tmp_path):
     doc["verification"]["window_set"]["window_length_cap_m"] = "long"
     edited = tmp_path / "plan.yaml"
     edited.write_text(yaml.safe_dump(doc, sort_keys=False))
-    done = subprocess.run(["vlp-locate", str(edited), "--simulate", "1.0,0.9,1.2,15,40,10"], capture_output=True,
-                          text=True)
+    done = vlp("vlp-locate", str(edited), "--simulate", "1.0,0.9,1.2,15,40,10")
     assert done.returncode == 1 and "Traceback" not in done.stderr
     assert "window_length_cap_m: 'long' is not a length > 0 m" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 from planner.camera.model import Camera
 from planner.positioning.accuracy import site_errors
 from planner.positioning.error_terms import DEFAULT_TERMS, NO_TERMS, TERMS, ErrorTerms
@@ -56,10 +56,9 @@ def test_the_accelerometer_term_moves_gravity_fixes_only(poses):
 
 def _plan(tmp, receiver: str, accelerometer_deg: float, report: bool = False) -> tuple[dict, bytes]:
     out = tmp / f"{receiver}-{accelerometer_deg:g}"
-    run = subprocess.run(["vlp-plan", str(tmp / "room.yaml"), "--camera", str(tmp / "wide.yaml"), "--receiver",
-                          receiver, "--accelerometer-deg", f"{accelerometer_deg:g}", "--error-poses-per-m2", "6",
-                          "-o", str(out), "--json", "--no-firmware", *(() if report else ("--no-report",))],
-                         capture_output=True, text=True)
+    run = vlp("vlp-plan", str(tmp / "room.yaml"), "--camera", str(tmp / "wide.yaml"), "--receiver",
+              receiver, "--accelerometer-deg", f"{accelerometer_deg:g}", "--error-poses-per-m2", "6",
+              "-o", str(out), "--json", "--no-firmware", *(() if report else ("--no-report",)))
     assert run.returncode == 0, run.stderr
     return json.loads(run.stdout), (out / "error.png").read_bytes()
 
@@ -137,7 +136,6 @@ def test_the_gravity_plans_error_map_keeps_its_longer_title_inside_the_canvas(tm
 
 @pytest.mark.parametrize("value", ["-1", "46", "nan"])
 def test_vlp_plan_refuses_an_accelerometer_error_out_of_range_in_one_line(value, tmp_path):
-    run = subprocess.run(["vlp-plan", "layouts/grid-32.yaml", "--accelerometer-deg", value, "-o", str(tmp_path / "o")],
-                         capture_output=True, text=True, cwd=str(ROOT))
+    run = vlp("vlp-plan", "layouts/grid-32.yaml", "--accelerometer-deg", value, "-o", str(tmp_path / "o"), cwd=str(ROOT))
     assert run.returncode == 2 and "--accelerometer-deg" in run.stderr and "Traceback" not in run.stderr
     assert len(run.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()

@@ -14,7 +14,7 @@ import subprocess
 import pytest
 import yaml
 
-from conftest import shared_vlp_plan
+from conftest import shared_vlp_plan, vlp
 
 
 @pytest.mark.slow
@@ -47,8 +47,8 @@ def test_office_with_a_listed_fisheye_phone_is_proved_and_the_twin_locates_it(tm
           f" max {result['error_m']['max']:.4f} m")
     # a pose whose far-edge LEDs the two-LED start misplaces by more than their images (ideal pixels at 70 deg
     # off axis): identified only by matching them again from the refitted pose (failed on seeds 0-2 and 38 of 40 seeds before)
-    one = subprocess.run(["vlp-twin", str(out / "plan.yaml"), "--pose", "13.08,17.09,0.52,10.1,202.8,139.6",
-                          "--seed", "0", "--json"], capture_output=True, text=True)
+    one = vlp("vlp-twin", str(out / "plan.yaml"), "--pose", "13.08,17.09,0.52,10.1,202.8,139.6",
+              "--seed", "0", "--json")
     assert one.returncode == 0, one.stderr
     pose = json.loads(one.stdout)
     # measured 2026-12-04: 1.03 cm, under 1 cm before the fit weighed each ellipse by its uncertainty under the full

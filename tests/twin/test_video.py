@@ -6,13 +6,12 @@ rows, too short for a 12-chip frame at any rate, so the plan reads it over 3 vid
 """
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, vlp
 from planner.modulation.frame import frame_chips, line_code
 from planner.plan.file import load_plan
 from planner.twin.twin import Twin, covered_poses, run_pose
@@ -27,8 +26,8 @@ FAST = ["--no-map", "--no-report", "--no-firmware", "--error-poses-per-m2", "0"]
 
 def _plan(tmp_path, layout, camera, *extra):
     (tmp_path / "cam.yaml").write_text(yaml.safe_dump(camera))
-    return subprocess.run(["vlp-plan", str(layout), "--camera", str(tmp_path / "cam.yaml"), "-o",
-                           str(tmp_path / "out"), *FAST, *extra], capture_output=True, text=True, timeout=300)
+    return vlp("vlp-plan", str(layout), "--camera", str(tmp_path / "cam.yaml"), "-o",
+               str(tmp_path / "out"), *FAST, *extra)
 
 
 @pytest.fixture(scope="module")
@@ -126,8 +125,7 @@ def test_the_twin_reads_ids_over_three_video_frames(bay):
 
 
 def test_vlp_twin_reads_a_multi_frame_plan_over_its_video_frames(bay):
-    done = subprocess.run(["vlp-twin", str(bay[1]), "--poses", "4", "--jobs", "1", "--json", "--min-success", "0.5"],
-                          capture_output=True, text=True, timeout=300)
+    done = vlp("vlp-twin", str(bay[1]), "--poses", "4", "--jobs", "1", "--json", "--min-success", "0.5")
     assert done.returncode == 0, done.stderr
     s = json.loads(done.stdout)
     assert s["video_frames"] == 3 and s["video_fps"] == 30.0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from conftest import ROOT, exact_nearest, grid_xy
+from conftest import ROOT, exact_nearest, grid_xy, vlp
 from planner.camera.model import Camera
 from planner.layout.read import read_layout
 from planner.verify import pair_cells as pc
@@ -246,11 +246,10 @@ def test_grid_256_and_the_office_two_led_windows_lie_in_the_proved_set():
 def test_vlp_plan_proves_grid_512_for_the_gravity_receiver_in_6_bits(tmp_path):
     """Issue 19, Done-when 2, through the installed console script; the proof line names the window rule's cap."""
     import json
-    import subprocess
 
-    done = subprocess.run(["vlp-plan", str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "--receiver",
-                           "gravity", "-o", str(tmp_path / "p"), "--json", "--no-report", "--no-map", "--no-firmware",
-                           "--error-poses-per-m2", "0"], capture_output=True, text=True)
+    done = vlp("vlp-plan", str(ROOT / "layouts" / "grid-512.yaml"), "--leds", "512", "--receiver",
+               "gravity", "-o", str(tmp_path / "p"), "--json", "--no-report", "--no-map", "--no-firmware",
+               "--error-poses-per-m2", "0")
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     v = summary["verification"]

@@ -2,15 +2,13 @@
 the same triples as the untiled computation, and byte-identical plans in process, on 2 local processes and
 on a 2-worker Dask cluster (issue 34)."""
 
-import shutil
-import subprocess
 
 import numpy as np
 import pytest
 import yaml
 from scipy.spatial import cKDTree
 
-from conftest import ROOT, grid_xy
+from conftest import ROOT, grid_xy, vlp
 from planner.camera.model import Camera
 from planner.parallel import InProcess, LocalProcesses, runner
 from planner.verify.envelope import envelope
@@ -81,15 +79,9 @@ def test_two_local_processes_give_the_same_proof():
     assert np.array_equal(parallel, tiled_windows(xyz, radii, env, InProcess(), 10**9, 10**9).triangles)
 
 
-def _vlp_plan(*args: str) -> subprocess.CompletedProcess:
-    exe = shutil.which("vlp-plan")
-    assert exe is not None, "vlp-plan is not installed in this environment"
-    return subprocess.run([exe, *args], capture_output=True, text=True, timeout=1800)
-
-
 def test_unreachable_scheduler_is_one_line_exit_1_nothing_written(tmp_path):
     out = tmp_path / "out"
-    done = _vlp_plan(str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9")
+    done = vlp("vlp-plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9")
     assert done.returncode == 1, done.stderr
     assert done.stderr.count("\n") == 1 and "--scheduler tcp://127.0.0.1:9" in done.stderr, done.stderr
     assert "refused" in done.stderr  # said at once, not after Dask's connect timeout
@@ -97,7 +89,7 @@ def test_unreachable_scheduler_is_one_line_exit_1_nothing_written(tmp_path):
 
 
 def test_workers_and_scheduler_together_are_a_usage_error(tmp_path):
-    done = _vlp_plan(str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--workers", "2",
+    done = vlp("vlp-plan", str(ROOT / "layouts" / "grid-32.yaml"), "-o", str(tmp_path / "o"), "--workers", "2",
                      "--scheduler", "tcp://127.0.0.1:9")
     assert done.returncode == 2 and "exclude each other" in done.stderr, done.stderr
 
@@ -114,7 +106,7 @@ def test_plan_is_byte_identical_in_process_on_two_workers_and_on_a_dask_cluster(
     with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None) as cluster:
         runs = {"single": [], "workers": ["--workers", "2"], "dask": ["--scheduler", cluster.scheduler_address]}
         for name, extra in runs.items():
-            done = _vlp_plan(str(layout), "-o", str(tmp_path / name), *common, *extra)
+            done = vlp("vlp-plan", str(layout), "-o", str(tmp_path / name), *common, *extra)
             assert done.returncode == 0, done.stderr
     doc = yaml.safe_load((tmp_path / "single" / "plan.yaml").read_text())
     ws = doc["verification"]["window_set"]

@@ -1,7 +1,6 @@
 """Verification: windows, keys, coverage, and vlp-verify on real plans."""
 import itertools
 import json
-import subprocess
 
 import numpy as np
 import pytest
@@ -9,7 +8,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import BIN, ROOT, grid32_copy, grid_xy, nearest_by_the_model
+from conftest import ROOT, grid32_copy, grid_xy, nearest_by_the_model, vlp
 from planner.camera.model import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.schemes import assign_window
 from planner.codes.window import window_keys
@@ -165,7 +164,7 @@ def ccw(t, xy) -> bool:
 
 
 def plan_cli(args, cwd=ROOT):
-    return subprocess.run([str(BIN / args[0]), *args[1:]], cwd=cwd, capture_output=True, text=True)
+    return vlp(*args, cwd=cwd)
 
 
 @pytest.mark.slow
@@ -279,7 +278,7 @@ def test_vlp_verify_names_a_clash_of_a_window_no_sample_produced(tmp_path_factor
     lums[u[k]]["id"] = int(ids[t[k]])
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(doc, sort_keys=False))
-    result = subprocess.run(["vlp-verify", str(bad), "--json"], capture_output=True, text=True)
+    result = vlp("vlp-verify", str(bad), "--json")
     assert result.returncode == 3, result.stdout + result.stderr
     w = json.loads(result.stdout)["window_set"]
     window, rival = ({lums[i]["name"] for i in x} for x in (t, u))
