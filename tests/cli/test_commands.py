@@ -107,3 +107,22 @@ def test_vlp_flash_json_of_a_bus_run_records_each_driver_and_hides_the_key(plan5
                                                                                ("R01C02", 2, "flashed")]
     assert key not in done.stdout + done.stderr + (tmp_path / "as-built.json").read_text()
 
+
+
+@pytest.mark.parametrize("argv", [
+    ["vlp-plan", "--version"],
+    ["vlp-verify", "--seed", "-1", "plan.yaml"],  # refused by the parser: exit 2, usage on stderr
+    ["vlp-plan", "no-such-layout.yaml", "-o", "out"],  # refused by the command: one line, exit 1
+    ["vlp-flash", "plan.yaml", "R01C01", "--port", "sim://", "--json"],
+    ["vlp-locate", "--help"],
+], ids=lambda argv: " ".join(argv[:2]))
+def test_a_command_run_in_process_gives_what_the_script_gives(argv, tmp_path):
+    """Most tests run a command through ``conftest.vlp`` (the installed script's entry point, in the test's process):
+    its exit code, stdout and stderr are the script's, byte for byte, on what parses, what is refused and --help."""
+    from conftest import vlp
+
+    script = subprocess.run(argv, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    inside = vlp(*argv, cwd=tmp_path)
+    assert (inside.returncode, inside.stdout, inside.stderr) == (script.returncode, script.stdout, script.stderr)
+    assert script.stdout or script.stderr
+    assert list(tmp_path.iterdir()) == []
