@@ -109,7 +109,7 @@ def classify_pairs(position: np.ndarray, pp: PosePairs, xyz: np.ndarray, ids: np
         idx = np.flatnonzero(covered)
         hit = np.array([tuple(p) in bad for p in pp.pairs[idx].tolist()], dtype=bool)
         status[idx[hit]] = AMBIGUOUS
-    return Verification(position, status, PairSet(windows), groups, per_m2, seed, tolerance_m)  # type: ignore[arg-type]
+    return Verification(position, status, PairSet(windows), groups, per_m2, seed, tolerance_m)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ is proved for every pose is the window-set check (:class:`WindowSetCheck`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -107,7 +108,17 @@ def check_window_set(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, max_si
                           proof.envelope if proof is not None else None)
 
 
-def side_bound(ws: WindowSet, xyz: np.ndarray, tolerance_m: float) -> float:
+class Windows(Protocol):
+    """Distinct windows seen, one row of luminaire indices each: a :class:`WindowSet` (three LEDs) or a
+    :class:`planner.verify.pair_windows.PairSet` (two LEDs with gravity)."""
+
+    @property
+    def windows(self) -> np.ndarray: ...
+
+    def __len__(self) -> int: ...
+
+
+def side_bound(ws: Windows, xyz: np.ndarray, tolerance_m: float) -> float:
     """Longest side of the windows ``ws`` plus the tolerance [m]: the sampled side bound."""
     return longest_side(ws.windows, xyz) + tolerance_m if len(ws) else 0.0
 
@@ -122,8 +133,8 @@ class Verification:
         Sampled camera positions [m].
     status : numpy.ndarray of int, shape (P,)
         ``DECODABLE``, ``AMBIGUOUS``, ``COLLINEAR`` or ``TOO_FEW`` for each pose.
-    windows : WindowSet
-        The distinct non-collinear windows seen.
+    windows : Windows
+        The distinct non-collinear windows seen (triples, or pairs for the two-LED receiver).
     conflicts : list of list of tuple
         A sampled window (luminaire index triple) followed by the triples of the site that read
         like it, one group per such window, largest first.
@@ -133,7 +144,7 @@ class Verification:
 
     position: np.ndarray
     status: np.ndarray
-    windows: WindowSet
+    windows: Windows
     conflicts: list
     per_m2: float
     seed: int
