@@ -123,6 +123,7 @@ def _pose_text(r: PoseResult) -> str:
 
 
 def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
+    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     import numpy as np
@@ -143,7 +144,10 @@ def run_batch(plan: PlanFile, args, sensor: Sensor) -> list[PoseResult]:
         _init(*init)
         stream = map(_one, tasks)
     else:
-        pool = ProcessPoolExecutor(args.jobs, initializer=_init, initargs=init)
+        # spawned, as planner.parallel's pool: a forked child of a threaded process (a test runner, a caller's
+        # thread pool) can inherit a lock held by another thread and hang
+        pool = ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_init,
+                                   initargs=init)
         stream = pool.map(_one, tasks, chunksize=4)
     try:
         for k, r in enumerate(stream, 1):
