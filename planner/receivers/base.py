@@ -10,17 +10,19 @@ mode, never compare its name.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar, TypeAlias
 
 import numpy as np
 
 from planner.camera.model import Camera, Poses
-from planner.codes.assignment import Assignment
 from planner.graph import NeighbourGraph
 from planner.parallel import Runner
 from planner.positioning.error_terms import ErrorTerms
 from planner.verify.verify import Verification
 from planner.verify.windows import PoseSample, sample_poses, working_area
+
+if TYPE_CHECKING:
+    from planner.codes.assignment import Assignment
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ class Job:
     runner: Runner | None = None  # where the proof's tiles run (planner.parallel); None: in process
 
 
-Planned = tuple[Assignment, Verification | None, dict]
+Planned: TypeAlias = "tuple[Assignment, Verification | None, dict]"
 """The IDs, their verification (None unverified) and every scheme considered."""
 
 

@@ -5,23 +5,23 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planner.camera.model import Camera, Poses, disc_image_rows
-from planner.codes.assignment import Assignment, assign_paper
-from planner.codes.pair_code import assign_pairs
-from planner.codes.schemes import assign_unique
 from planner.graph import NeighbourGraph
 from planner.modulation.timing import timing_per_m2
 from planner.parallel import Runner
 from planner.positioning.error_terms import ErrorTerms
 from planner.positioning.gravity import accelerometer
 from planner.receivers.base import Job, Planned, Receiver
-from planner.verify.pair_proof import prove_pair_set
 from planner.verify.pair_windows import PosePairs, check_pair_set, classify_pairs, find_pairs, window_pairs
 from planner.verify.verify import Verification
 from planner.verify.windows import CONGRUENCE_TOLERANCE_M, PoseSample, sample_poses, working_area
+
+if TYPE_CHECKING:
+    from planner.codes.assignment import Assignment
 
 
 class TwoLedsGravity(Receiver):
@@ -100,6 +100,11 @@ def plan_gravity(xyz: np.ndarray, radii: np.ndarray, graph: NeighbourGraph, came
                  install_tolerance_m: float) -> tuple[Assignment, Verification, dict]:
     """IDs for the gravity receiver under ``scheme`` (``auto``: the pair code or the paper's, fewer bits
     that verifies; else unique), each verified on the sample's two-LED windows and the pair set."""
+    from planner.codes.assignment import assign_paper  # the design and proof stages: locating needs neither
+    from planner.codes.pair_code import assign_pairs
+    from planner.codes.schemes import assign_unique
+    from planner.verify.pair_proof import prove_pair_set
+
     poses, pp = sample_pairs(sample, xyz, radii, camera, per_m2)
     proof = prove_pair_set(xyz, radii, camera, install_tolerance_m, sample.area)
     sampled = np.unique(pp.pairs[pp.covered], axis=0).reshape(-1, 2)
@@ -139,6 +144,8 @@ def verify_gravity(xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline,
                    seed: int, tolerance_m: float, install_tolerance_m: float) -> Verification:
     """A gravity plan verified anew (``vlp-verify``): sampled two-LED windows and the pair set, proved where
     the pair proof completes (made from the luminaires and the camera, never read from the plan)."""
+    from planner.verify.pair_proof import prove_pair_set
+
     area = working_area(xyz[:, :2], outline)
     poses = sample_poses(area, camera, per_m2, seed)
     pp = find_pairs(poses, xyz, radii, camera)

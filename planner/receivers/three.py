@@ -8,13 +8,9 @@ from dataclasses import replace
 import numpy as np
 
 from planner.camera.model import Camera, Poses
-from planner.codes.assignment import assign_paper
-from planner.codes.proved import window_set_bound
-from planner.codes.schemes import assign_unique, assign_window
 from planner.modulation.timing import smallest_window_image_rows
 from planner.parallel import Runner
 from planner.receivers.base import Job, Planned, Receiver
-from planner.verify.proof import prove_window_set
 from planner.verify.verify import Verification, check_window_set, classify, observe_poses, side_bound, verify_plan
 from planner.verify.windows import PoseSample, find_windows
 
@@ -28,6 +24,12 @@ class ThreeLeds(Receiver):
     leds_text = "three"
 
     def plan(self, job: Job) -> Planned:
+        # the code design and proof stages load here: locating with a plan needs neither
+        from planner.codes.assignment import assign_paper
+        from planner.codes.proved import window_set_bound
+        from planner.codes.schemes import assign_unique, assign_window
+        from planner.verify.proof import prove_window_set
+
         xyz, radii, graph, xy = job.xyz, job.radii, job.graph, job.xyz[:, :2]
         observations = job.observations
         if job.verify:
@@ -84,6 +86,8 @@ class ThreeLeds(Receiver):
     def verify(self, xyz: np.ndarray, radii: np.ndarray, ids: np.ndarray, outline, camera: Camera, *, per_m2: float,
                seed: int, tolerance_m: float, install_tolerance_m: float, recorded: dict,
                runner: Runner | None = None) -> Verification:
+        from planner.verify.proof import prove_window_set
+
         result = verify_plan(xyz, radii, ids, outline, camera, per_m2=per_m2, seed=seed, tolerance_m=tolerance_m)
         # The proof is made anew from the luminaires and the camera, never read from the plan; without
         # one, only the sampled side bound may come from the plan.
