@@ -27,25 +27,21 @@ SCRIPTS = {ep.name: ep for ep in metadata.distribution("vlp-plan").entry_points 
 """The installed console scripts' entry points, by command name (what each script's wrapper calls)."""
 
 
-def vlp(command: str, *args: object, cwd: str | Path | None = None, env: dict[str, str] | None = None,
-        input: str = "") -> subprocess.CompletedProcess[str]:
+def vlp(command: str, *args: object, cwd: str | Path | None = None) -> subprocess.CompletedProcess[str]:
     """The installed console script ``command`` run on ``args`` in this process: the function its wrapper calls,
-    with ``sys.argv``, the working directory, the environment (``env`` replaces it, as ``subprocess.run`` does)
-    and the standard streams its own; stdin holds ``input`` and is not a terminal. The exit code, stdout and
-    stderr, as ``subprocess.run(capture_output=True, text=True)`` gives them.
+    with ``sys.argv``, the working directory (``cwd``, if given) and the standard streams its own; stdin is empty
+    and not a terminal. The exit code, stdout and stderr, as ``subprocess.run(capture_output=True, text=True)``
+    gives them.
 
     A command run so costs no interpreter start and no imports (0.3 to 1.3 s a process, docs/performance.md).
-    What only a process shows stays a process: the scripts themselves, their start-up time, signals, terminals,
-    resource limits (tests/cli/test_commands.py, test_startup.py, test_hostile_files.py...)."""
+    What only a process shows stays a process: the scripts themselves, their start-up time, hash seeds, signals,
+    terminals, resource limits (tests/cli/test_commands.py, test_startup.py, test_hostile_files.py...)."""
     main = SCRIPTS[command].load()
     raw = io.BytesIO(), io.BytesIO()
     out, err = (io.TextIOWrapper(b, encoding="utf-8", newline="\n") for b in raw)
-    saved = sys.argv, sys.stdin, sys.stdout, sys.stderr, os.getcwd(), dict(os.environ)
+    saved, cwd_was = (sys.argv, sys.stdin, sys.stdout, sys.stderr), os.getcwd()
     try:
-        sys.argv, sys.stdin, sys.stdout, sys.stderr = [command, *map(str, args)], io.StringIO(input), out, err
-        if env is not None:
-            os.environ.clear()
-            os.environ.update(env)
+        sys.argv, sys.stdin, sys.stdout, sys.stderr = [command, *map(str, args)], io.StringIO(), out, err
         if cwd is not None:
             os.chdir(cwd)
         try:
@@ -55,10 +51,8 @@ def vlp(command: str, *args: object, cwd: str | Path | None = None, env: dict[st
             if isinstance(done.code, str):
                 print(done.code, file=err)
     finally:
-        sys.argv, sys.stdin, sys.stdout, sys.stderr, cwd_was, env_was = saved
+        sys.argv, sys.stdin, sys.stdout, sys.stderr = saved
         os.chdir(cwd_was)
-        os.environ.clear()
-        os.environ.update(env_was)
     out.flush()
     err.flush()
     return subprocess.CompletedProcess([command, *map(str, args)], code or 0, *(b.getvalue().decode() for b in raw))

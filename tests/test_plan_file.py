@@ -1,13 +1,12 @@
 """plan.yaml read back: one typed plan, checked once; an edited or damaged plan gets one line from every command."""
 
-import importlib
 import subprocess
 
 import numpy as np
 import pytest
 import yaml
 
-from conftest import grid32_copy
+from conftest import grid32_copy, vlp
 from planner.errors import InputError
 from planner.plan.file import PlanFile, load_plan
 
@@ -81,15 +80,14 @@ COMMANDS = {"vlp-verify": [], "vlp-report": [], "vlp-twin": ["--poses", "2"], "v
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 @pytest.mark.parametrize("key", ["id-text", "x-list", "camera-text", "modulation-text", "name-number"])
-def test_every_command_refuses_an_edited_plan_in_one_line(plan_doc, tmp_path, capsys, command, key):
+def test_every_command_refuses_an_edited_plan_in_one_line(plan_doc, tmp_path, command, key):
     bad = _edited(plan_doc, tmp_path, key)
     argv = [str(bad), *COMMANDS[command]]
     if key == "id-text":  # the installed script as a user runs it, once per command
         done = subprocess.run([command, *argv], capture_output=True, text=True, timeout=120)
-        code, out, err = done.returncode, done.stdout, done.stderr
     else:  # the script's entry point in process (a child costs ~0.3 CPU-s of imports): the same code and lines
-        code = importlib.import_module(f"planner.cli.{command.removeprefix('vlp-')}").console_main(argv)
-        out, err = capsys.readouterr()
+        done = vlp(command, *argv)
+    code, out, err = done.returncode, done.stdout, done.stderr
     assert code == 1, (out, err)
     assert err.count("\n") == 1 and EDITS[key][1].split(":")[0] in err, err
     assert "Traceback" not in err and sorted(p.name for p in tmp_path.iterdir()) == ["plan.yaml"]

@@ -40,8 +40,8 @@ def _photos(folder, camera: Camera, spread: float, distance: float, seed: int) -
     return paths, np.vstack(corners)
 
 
-def _run(*argv, cwd=None) -> subprocess.CompletedProcess:
-    return vlp("vlp-calibrate", *map(str, argv), cwd=cwd)
+def _run(*argv) -> subprocess.CompletedProcess:
+    return vlp("vlp-calibrate", *argv)
 
 
 def _distortion_error_px(a: Camera, b: Camera, seen_px: np.ndarray) -> float:

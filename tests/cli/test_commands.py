@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import planner
-from conftest import ROOT
+from conftest import ROOT, vlp
 
 COMMANDS = tuple(sorted(ep.name for ep in metadata.distribution("vlp-plan").entry_points if ep.group == "console_scripts"))
 
@@ -108,7 +108,6 @@ def test_vlp_flash_json_of_a_bus_run_records_each_driver_and_hides_the_key(plan5
     assert key not in done.stdout + done.stderr + (tmp_path / "as-built.json").read_text()
 
 
-
 @pytest.mark.parametrize("argv", [
     ["vlp-plan", "--version"],
     ["vlp-verify", "--seed", "-1", "plan.yaml"],  # refused by the parser: exit 2, usage on stderr
@@ -119,8 +118,6 @@ def test_vlp_flash_json_of_a_bus_run_records_each_driver_and_hides_the_key(plan5
 def test_a_command_run_in_process_gives_what_the_script_gives(argv, tmp_path):
     """Most tests run a command through ``conftest.vlp`` (the installed script's entry point, in the test's process):
     its exit code, stdout and stderr are the script's, byte for byte, on what parses, what is refused and --help."""
-    from conftest import vlp
-
     script = subprocess.run(argv, capture_output=True, text=True, timeout=60, cwd=tmp_path)
     inside = vlp(*argv, cwd=tmp_path)
     assert (inside.returncode, inside.stdout, inside.stderr) == (script.returncode, script.stdout, script.stderr)

@@ -8,7 +8,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT, grid32_copy, grid_xy, nearest_by_the_model, vlp
+from conftest import grid32_copy, grid_xy, nearest_by_the_model, vlp
 from planner.camera.model import Camera, Poses, project_discs, rotation_from_angles
 from planner.codes.schemes import assign_window
 from planner.codes.window import window_keys
@@ -163,14 +163,10 @@ def ccw(t, xy) -> bool:
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0
 
 
-def plan_cli(args, cwd=ROOT):
-    return vlp(*args, cwd=cwd)
-
-
 @pytest.mark.slow
 def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_path):
     out = grid32_copy(tmp_path_factory, tmp_path / "out", "--error-poses-per-m2", "0").parent  # planned once per run
-    ok = plan_cli(["vlp-verify", str(out / "plan.yaml")])
+    ok = vlp("vlp-verify", str(out / "plan.yaml"))
     assert ok.returncode == 0 and "0 ambiguous" in ok.stdout
     doc = yaml.safe_load((out / "plan.yaml").read_text())
     assert doc["scheme"] == "window"  # the default scheme chooses the window code on grid-32
@@ -195,7 +191,7 @@ def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_
     lums[i]["id"], lums[j]["id"] = lums[j]["id"], lums[i]["id"]
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump(doc, sort_keys=False))
-    result = plan_cli(["vlp-verify", str(bad), "--map", str(tmp_path / "cov.png")])
+    result = vlp("vlp-verify", str(bad), "--map", str(tmp_path / "cov.png"))
     assert result.returncode == 3, result.stdout + result.stderr
     named = [line for line in result.stdout.splitlines() if "same key:" in line]
     assert named and any(lums[i]["name"] in line or lums[j]["name"] in line for line in named)
@@ -205,7 +201,7 @@ def test_vlp_verify_passes_a_plan_and_fails_a_swapped_one(tmp_path_factory, tmp_
 def test_vlp_verify_bad_plan_file(tmp_path):
     bad = tmp_path / "plan.yaml"
     bad.write_text("format: something-else\n")
-    result = plan_cli(["vlp-verify", str(bad)])
+    result = vlp("vlp-verify", str(bad))
     assert result.returncode == 1 and "not a vlp-plan/1 plan" in result.stderr
 
 
