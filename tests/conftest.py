@@ -63,7 +63,7 @@ SLOW_FIXTURES = {"plan512_dir", "plan256_dir", "test_efficiency.py:table",
 """Fixtures that plan a large site or run a whole study (tens of seconds): every test using one is ``slow``."""
 
 
-SLOW_MODULES = {"test_plan_seal.py", "test_flash_host.py", "test_journal_chain.py", "test_driver_avr.py",
+SLOW_MODULES = {"test_plan_seal.py", "test_flash_host.py", "test_flash_images.py", "test_journal_chain.py", "test_driver_avr.py",
                 "test_photo.py", "test_phone_photos.py", "test_video.py", "test_advice.py", "test_advice_frames.py",
                 "test_default_receiver.py", "test_verify_verdict.py", "test_tone_site.py", "test_parallel.py",
                 "test_gravity.py", "test_from_plan.py", "test_timings.py", "test_hostile_dxf.py"}
